@@ -1,0 +1,1 @@
+"""mexgen_gcs.analysis layer (see ARCHITECTURE.md)."""

@@ -1,0 +1,1 @@
+"""mexgen_gcs.config layer (see ARCHITECTURE.md)."""

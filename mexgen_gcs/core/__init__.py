@@ -1,0 +1,1 @@
+"""mexgen_gcs.core layer (see ARCHITECTURE.md)."""

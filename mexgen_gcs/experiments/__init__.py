@@ -1,0 +1,1 @@
+"""mexgen_gcs.experiments layer (see ARCHITECTURE.md)."""

@@ -1,0 +1,1 @@
+"""mexgen_gcs.io layer (see ARCHITECTURE.md)."""

@@ -1,0 +1,1 @@
+"""mexgen_gcs.mission layer (see ARCHITECTURE.md)."""

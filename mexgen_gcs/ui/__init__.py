@@ -1,0 +1,1 @@
+"""mexgen_gcs.ui layer (see ARCHITECTURE.md)."""
