@@ -1,0 +1,239 @@
+"""MissionCore: the decision logic of a mission, one synchronous object shared by the flight
+path (mission controller) and the experiment runner, so what is measured is what flies.
+
+Frame: local ENU metres about home; yaw is a compass heading in radians.
+
+It owns one Bernoulli filter per tag, buffers detections, runs the filter cadence once per
+pulse period (detections, or a missed detection when the receiver was listening for the tag),
+keeps the localisation bookkeeping (a tag localised once stays localised and is not targeted
+again, as in the paper), chooses the planning target, and prepares planning requests: pure
+arrays that a worker thread can plan on while the filters keep updating.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, TagEstimate
+from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.radio import RadioModel
+
+FloatArray = NDArray[np.float64]
+MissionKind = Literal["localise", "follow"]
+TargetRule = Literal["closest", "all"]
+
+
+@dataclass(frozen=True, slots=True)
+class Localised:
+    """The moment a tag first met the localisation criterion."""
+
+    tag_id: str
+    t: float
+    estimate: TagEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class PulseReport:
+    """What one pulse period's filter cadence did."""
+
+    t: float
+    estimates: dict[str, TagEstimate]
+    updated: dict[str, str]
+    """tag -> 'detection' | 'missed' | 'predict-only'."""
+    newly_localised: tuple[Localised, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleState:
+    """Where the vehicle is for planning: ENU position (3,), ENU velocity (2,), heading."""
+
+    xyz_m: FloatArray
+    v_xy_m_s: FloatArray
+    yaw_rad: float
+
+
+@dataclass(frozen=True, slots=True)
+class TagBelief:
+    """An equal-weight particle belief of one tag for the planner."""
+
+    tag_id: str
+    states: FloatArray
+    """(N, 4) [x, y, vx, vy]."""
+    modes: ModeArray
+    motion: MotionModel
+    existence: float
+
+
+@dataclass(frozen=True, slots=True)
+class PlanRequest:
+    """Everything the planner needs, detached from the filters (safe to use off-thread)."""
+
+    t: float
+    vehicle: VehicleState
+    beliefs: tuple[TagBelief, ...]
+
+
+@dataclass
+class _Buffered:
+    z_db: list[float] = field(default_factory=list)
+    rx_xyz: FloatArray | None = None
+    rx_yaw_rad: float = 0.0
+
+
+class MissionCore:
+    """Per-tag filters, cadence, targets and localisation bookkeeping for one mission."""
+
+    def __init__(
+        self,
+        tag_ids: Sequence[str],
+        motion: MotionModel,
+        radio: RadioModel,
+        area: SearchArea,
+        filter_config: FilterConfig,
+        rng: np.random.Generator,
+        *,
+        kind: MissionKind = "localise",
+        target_rule: TargetRule = "closest",
+        follow_tag: str | None = None,
+        planning_particles: int = 1000,
+        t0: float = 0.0,
+    ) -> None:
+        if not tag_ids:
+            raise ValueError("a mission needs at least one tag")
+        if kind == "follow" and follow_tag not in tag_ids:
+            raise ValueError(f"follow tag {follow_tag!r} is not one of the mission's tags")
+        self.tag_ids = tuple(tag_ids)
+        self.motion = motion
+        self.radio = radio
+        self.area = area
+        self.kind: MissionKind = kind
+        self.target_rule: TargetRule = target_rule
+        self.follow_tag = follow_tag
+        self.planning_particles = planning_particles
+        self.rng = rng
+        # one child generator per tag: adding a tag does not change the others' draws
+        children = rng.spawn(len(self.tag_ids))
+        self.filters = {
+            tid: BernoulliFilter(motion, radio, area, filter_config, child)
+            for tid, child in zip(self.tag_ids, children, strict=True)
+        }
+        self.localised: dict[str, Localised] = {}
+        self.detections = dict.fromkeys(self.tag_ids, 0)
+        self.last_rssi_db: dict[str, float] = {}
+        self._buffer = {tid: _Buffered() for tid in self.tag_ids}
+        self._last_t = t0
+
+    def reset_clock(self, t: float) -> None:
+        """Start the cadence at t (e.g. when airborne): the first predict spans from here."""
+        self._last_t = t
+        self._buffer = {tid: _Buffered() for tid in self.tag_ids}
+
+    # -- ingest ------------------------------------------------------------------------------
+
+    def add_detection(
+        self, tag_id: str, rssi_db: float, rx_xyz: FloatArray, rx_yaw_rad: float
+    ) -> None:
+        """Buffer one detection for the current pulse period (receiver pose at the pulse)."""
+        if tag_id not in self._buffer:
+            raise KeyError(f"unknown tag {tag_id!r}")
+        if not (math.isfinite(rssi_db) and np.all(np.isfinite(rx_xyz))):
+            raise ValueError("detection needs a finite rssi and receiver position")
+        buf = self._buffer[tag_id]
+        if buf.rx_xyz is None:
+            buf.rx_xyz = np.asarray(rx_xyz, dtype=np.float64)
+            buf.rx_yaw_rad = float(rx_yaw_rad)
+        buf.z_db.append(float(rssi_db))
+        self.detections[tag_id] += 1
+        self.last_rssi_db[tag_id] = float(rssi_db)
+
+    def pulse(
+        self,
+        t: float,
+        rx_xyz: FloatArray,
+        rx_yaw_rad: float,
+        listening: Iterable[str] | None,
+    ) -> PulseReport:
+        """Run one pulse period's cadence at time t for every tag.
+
+        ``listening``: the tags the receiver reported listening for while its heartbeat was
+        fresh; a listened-for tag with no detection gets a missed-detection update. ``None``
+        means the radio is not known to be alive: filters only predict (silence is not
+        evidence when nobody was listening).
+        """
+        dt = max(t - self._last_t, 0.0)
+        self._last_t = t
+        heard = set(listening) if listening is not None else set()
+        updated: dict[str, str] = {}
+        estimates: dict[str, TagEstimate] = {}
+        newly: list[Localised] = []
+        for tid, f in self.filters.items():
+            f.predict(dt)
+            buf = self._buffer[tid]
+            if buf.z_db:
+                assert buf.rx_xyz is not None
+                f.update(np.asarray(buf.z_db), buf.rx_xyz, buf.rx_yaw_rad)
+                updated[tid] = "detection"
+            elif listening is not None and tid in heard:
+                f.update(np.empty(0), np.asarray(rx_xyz, dtype=np.float64), rx_yaw_rad)
+                updated[tid] = "missed"
+            else:
+                updated[tid] = "predict-only"
+            self._buffer[tid] = _Buffered()
+            est = f.estimate()
+            estimates[tid] = est
+            if est.localised and tid not in self.localised:
+                rec = Localised(tid, t, est)
+                self.localised[tid] = rec
+                newly.append(rec)
+        return PulseReport(t, estimates, updated, tuple(newly))
+
+    # -- decisions ---------------------------------------------------------------------------
+
+    def estimates(self) -> dict[str, TagEstimate]:
+        return {tid: f.estimate() for tid, f in self.filters.items()}
+
+    def targets(self, vehicle_xy: FloatArray) -> tuple[str, ...]:
+        """The tags to plan for: the follow tag; or the closest (by estimate) tag not yet
+        localised; or all tags not yet localised. Empty when there is nothing left to do."""
+        if self.kind == "follow":
+            assert self.follow_tag is not None
+            return (self.follow_tag,)
+        pending = [tid for tid in self.tag_ids if tid not in self.localised]
+        if self.target_rule == "all" or not pending:
+            return tuple(pending)
+        xy = np.asarray(vehicle_xy, dtype=np.float64)[:2]
+        dists = [float(np.linalg.norm(self.filters[t].estimate().mean[:2] - xy)) for t in pending]
+        return (pending[int(np.argmin(dists))],)
+
+    def plan_request(self, t: float, vehicle: VehicleState) -> PlanRequest | None:
+        """Detach the target beliefs for planning; None when there is no target."""
+        targets = self.targets(vehicle.xyz_m[:2])
+        if not targets:
+            return None
+        beliefs = []
+        for tid in targets:
+            f = self.filters[tid]
+            states, modes = f.sample(self.planning_particles, self.rng)
+            beliefs.append(TagBelief(tid, states, modes, self.motion, f.existence))
+        return PlanRequest(t, vehicle, tuple(beliefs))
+
+    def all_localised(self) -> bool:
+        return len(self.localised) == len(self.tag_ids)
+
+    def particle_cloud(self, tag_id: str, k: int = 200) -> FloatArray:
+        """A down-sampled (k, 2) position cloud of one tag for logs and the UI.
+
+        Deterministic (systematic positions with offset 1/2), so logging never consumes the
+        mission's random stream and a logged run decides exactly as an unlogged one."""
+        f = self.filters[tag_id]
+        w = np.exp(f.log_w - f.log_w.max())
+        cdf = np.cumsum(w)
+        idx = np.searchsorted(cdf / cdf[-1], (0.5 + np.arange(k)) / k, side="right")
+        return f.states[np.minimum(idx, len(w) - 1), :2]

@@ -1,0 +1,278 @@
+"""The Vehicle port and its MAVSDK adapter (native asyncio binding, ``mavsdk.asyncio``).
+
+Frames: MAVLink/MAVSDK speak NED (north, east, down) for velocities and compass degrees for
+yaw; this module keeps those names (``v_north_m_s``, ``yaw_deg``). Positions are WGS84.
+
+One MAVSDK subscription per telemetry stream, each consumed by one task owned by
+``MavsdkVehicle.run_telemetry`` (a TaskGroup) and fanned out as the latest value in a
+``TelemetryHub``; readers take immutable ``Telemetry`` snapshots. Every command is wrapped in
+a timeout and turns MAVSDK errors into ``VehicleError(call, result)``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from dataclasses import dataclass, replace
+from typing import Any, Protocol
+
+from mexgen_gcs.errors import VehicleError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class Telemetry:
+    """Latest vehicle state; `updated_wall` is the wall time of the last message of any kind."""
+
+    connected: bool = False
+    lat_deg: float = math.nan
+    lon_deg: float = math.nan
+    abs_alt_m: float = math.nan
+    rel_alt_m: float = math.nan
+    v_north_m_s: float = 0.0
+    v_east_m_s: float = 0.0
+    v_down_m_s: float = 0.0
+    yaw_deg: float = 0.0
+    armed: bool = False
+    in_air: bool = False
+    landed_state: str = "UNKNOWN"
+    flight_mode: str = "UNKNOWN"
+    battery_percent: float = math.nan
+    global_position_ok: bool = False
+    home_position_ok: bool = False
+    armable: bool = False
+    home_lat_deg: float = math.nan
+    home_lon_deg: float = math.nan
+    home_abs_alt_m: float = math.nan
+    updated_wall: float = 0.0
+
+    @property
+    def ground_speed_m_s(self) -> float:
+        return math.hypot(self.v_north_m_s, self.v_east_m_s)
+
+    @property
+    def has_position(self) -> bool:
+        return math.isfinite(self.lat_deg) and math.isfinite(self.lon_deg)
+
+    @property
+    def has_home(self) -> bool:
+        return math.isfinite(self.home_lat_deg) and math.isfinite(self.home_lon_deg)
+
+
+class TelemetryHub:
+    """Keeps the latest `Telemetry`; writers `update(**fields)`, readers `latest`."""
+
+    def __init__(self) -> None:
+        self._state = Telemetry()
+        self.messages = 0
+
+    @property
+    def latest(self) -> Telemetry:
+        return self._state
+
+    def update(self, **fields: Any) -> None:
+        self.messages += 1
+        self._state = replace(self._state, updated_wall=time.monotonic(), **fields)
+
+    def age_s(self) -> float:
+        """Wall seconds since the last telemetry message (inf before the first)."""
+        return math.inf if self._state.updated_wall == 0.0 else (
+            time.monotonic() - self._state.updated_wall)
+
+
+class Vehicle(Protocol):
+    """The vehicle port: what the mission needs from any autopilot."""
+
+    hub: TelemetryHub
+
+    async def connect(self, url: str, timeout_s: float) -> None: ...
+    async def run_telemetry(self) -> None: ...
+    async def wait_ready(self, timeout_s: float) -> None: ...
+    async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool: ...
+    async def arm(self) -> None: ...
+    async def takeoff(self, alt_m: float) -> None: ...
+    async def start_offboard(self, yaw_deg: float) -> None: ...
+    async def set_velocity_ned(self, v_north_m_s: float, v_east_m_s: float, v_down_m_s: float,
+                               yaw_deg: float) -> None: ...
+    async def hold(self) -> None: ...
+    async def return_to_launch(self) -> None: ...
+    async def land(self) -> None: ...
+    async def close(self) -> None: ...
+
+
+async def wait_until(
+    predicate: Callable[[], bool], timeout_s: float, what: str, poll_s: float = 0.05
+) -> None:
+    """Poll `predicate` until true, or raise VehicleError(what, 'timeout') after timeout_s."""
+    try:
+        async with asyncio.timeout(timeout_s):
+            while not predicate():
+                await asyncio.sleep(poll_s)
+    except TimeoutError:
+        raise VehicleError(what, f"timeout after {timeout_s:.0f} s") from None
+
+
+class MavsdkVehicle:
+    """`Vehicle` through MAVSDK's native asyncio binding. Plugins live as long as this object."""
+
+    COMMAND_TIMEOUT_S = 10.0
+
+    def __init__(self) -> None:
+        self.hub = TelemetryHub()
+        self._mavsdk: Any = None
+        self._system: Any = None
+        self._plugins: dict[str, Any] = {}
+
+    # -- life --------------------------------------------------------------------------------
+
+    async def connect(self, url: str, timeout_s: float = 30.0) -> None:
+        from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+        from mavsdk.asyncio.plugins.action import ActionAsync
+        from mavsdk.asyncio.plugins.geofence import GeofenceAsync
+        from mavsdk.asyncio.plugins.offboard import OffboardAsync
+        from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+        config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+        self._mavsdk = Mavsdk(config)
+        try:
+            await self._mavsdk.add_any_connection(url)
+        except Exception as exc:
+            raise VehicleError(f"add_any_connection({url})", str(exc)) from exc
+        system = await self._mavsdk.first_autopilot(timeout_s=timeout_s)
+        if system is None:
+            raise VehicleError(f"connect({url})", f"no autopilot heard within {timeout_s:.0f} s")
+        self._system = system
+        self._plugins = {
+            "telemetry": TelemetryAsync(system),
+            "action": ActionAsync(system),
+            "offboard": OffboardAsync(system),
+            "geofence": GeofenceAsync(system),
+        }
+        self.hub.update(connected=True)
+
+    async def close(self) -> None:
+        self._plugins.clear()
+        if self._mavsdk is not None:
+            with contextlib.suppress(Exception):
+                self._mavsdk.destroy()
+            self._mavsdk = None
+
+    # -- telemetry ---------------------------------------------------------------------------
+
+    async def run_telemetry(self) -> None:
+        """Consume every stream until cancelled: one task per MAVSDK subscription."""
+        tel = self._plugins["telemetry"]
+        streams: list[tuple[Callable[[], AsyncIterator[Any]], Callable[[Any], dict[str, Any]]]]
+        streams = [
+            (tel.subscribe_position, lambda p: {
+                "lat_deg": p.latitude_deg, "lon_deg": p.longitude_deg,
+                "abs_alt_m": p.absolute_altitude_m, "rel_alt_m": p.relative_altitude_m}),
+            (tel.subscribe_velocity_ned, lambda v: {
+                "v_north_m_s": v.north_m_s, "v_east_m_s": v.east_m_s, "v_down_m_s": v.down_m_s}),
+            (tel.subscribe_heading, lambda h: {"yaw_deg": h.heading_deg % 360.0}),
+            (tel.subscribe_armed, lambda a: {"armed": bool(a)}),
+            (tel.subscribe_in_air, lambda a: {"in_air": bool(a)}),
+            (tel.subscribe_landed_state, lambda s: {"landed_state": s.name}),
+            (tel.subscribe_flight_mode, lambda m: {"flight_mode": m.name}),
+            (tel.subscribe_battery, lambda b: {"battery_percent": _percent(b.remaining_percent)}),
+            (tel.subscribe_health, lambda h: {
+                "global_position_ok": h.is_global_position_ok,
+                "home_position_ok": h.is_home_position_ok, "armable": h.is_armable}),
+            (tel.subscribe_home, lambda h: {
+                "home_lat_deg": h.latitude_deg, "home_lon_deg": h.longitude_deg,
+                "home_abs_alt_m": h.absolute_altitude_m}),
+        ]
+        async with asyncio.TaskGroup() as tg:
+            for subscribe, convert in streams:
+                tg.create_task(self._pump(subscribe, convert))
+            tg.create_task(self._pump_connection())
+
+    async def _pump(self, subscribe: Callable[[], AsyncIterator[Any]],
+                    convert: Callable[[Any], dict[str, Any]]) -> None:
+        async for msg in subscribe():
+            try:
+                self.hub.update(**convert(msg))
+            except (AttributeError, TypeError, ValueError) as exc:  # a malformed value
+                log.warning("telemetry value ignored: %s", exc)
+
+    async def _pump_connection(self) -> None:
+        async for connected in self._system.is_connected_state():
+            self.hub.update(connected=bool(connected))
+            log.warning("vehicle link %s", "regained" if connected else "lost")
+
+    async def wait_ready(self, timeout_s: float = 30.0) -> None:
+        """Global position and home known (PX4 health flags)."""
+        def ready() -> bool:
+            t = self.hub.latest
+            return t.global_position_ok and t.home_position_ok and t.has_position and t.has_home
+        await wait_until(ready, timeout_s, "wait for health (global position, home)")
+
+    # -- commands ----------------------------------------------------------------------------
+
+    async def _call(self, what: str, coro: Awaitable[Any]) -> Any:
+        try:
+            async with asyncio.timeout(self.COMMAND_TIMEOUT_S):
+                return await coro
+        except TimeoutError:
+            raise VehicleError(what, f"no answer within {self.COMMAND_TIMEOUT_S:.0f} s") from None
+        except VehicleError:
+            raise
+        except Exception as exc:  # MAVSDK's ActionError, OffboardError, ...
+            result = getattr(exc, "_result", None)
+            raise VehicleError(what, str(result or exc)) from exc
+
+    async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool:
+        from mavsdk.asyncio.plugins.geofence import FenceType, GeofenceData, Point, Polygon
+
+        poly = Polygon([Point(lat, lon) for lat, lon in polygon_latlon_deg], FenceType.INCLUSION)
+        await self._call("upload_geofence",
+                         self._plugins["geofence"].upload_geofence(GeofenceData([poly], [])))
+        return True
+
+    async def arm(self) -> None:
+        await self._call("arm", self._plugins["action"].arm())
+
+    async def takeoff(self, alt_m: float) -> None:
+        action = self._plugins["action"]
+        await self._call("set_takeoff_altitude", action.set_takeoff_altitude(float(alt_m)))
+        await self._call("takeoff", action.takeoff())
+
+    async def start_offboard(self, yaw_deg: float) -> None:
+        from mavsdk.asyncio.plugins.offboard import VelocityNedYaw
+
+        offboard = self._plugins["offboard"]
+        await self._call("offboard.set_velocity_ned",
+                         offboard.set_velocity_ned(VelocityNedYaw(0.0, 0.0, 0.0, yaw_deg)))
+        await self._call("offboard.start", offboard.start())
+
+    async def set_velocity_ned(self, v_north_m_s: float, v_east_m_s: float, v_down_m_s: float,
+                               yaw_deg: float) -> None:
+        from mavsdk.asyncio.plugins.offboard import VelocityNedYaw
+
+        await self._call("offboard.set_velocity_ned", self._plugins["offboard"].set_velocity_ned(
+            VelocityNedYaw(v_north_m_s, v_east_m_s, v_down_m_s, yaw_deg)))
+
+    async def stop_offboard(self) -> None:
+        await self._call("offboard.stop", self._plugins["offboard"].stop())
+
+    async def hold(self) -> None:
+        await self._call("hold", self._plugins["action"].hold())
+
+    async def return_to_launch(self) -> None:
+        await self._call("return_to_launch", self._plugins["action"].return_to_launch())
+
+    async def land(self) -> None:
+        await self._call("land", self._plugins["action"].land())
+
+    async def disarm(self) -> None:
+        await self._call("disarm", self._plugins["action"].disarm())
+
+
+def _percent(remaining: float) -> float:
+    """MAVSDK >= 2 reports battery remaining in percent (0-100); NaN when unknown."""
+    return float(remaining) if math.isfinite(remaining) else math.nan
