@@ -1,0 +1,218 @@
+"""The `mexgen-gcs` command line: every subcommand's arguments are defined here, in one place.
+
+`check` is implemented here; the others are looked up lazily from the modules that implement
+them (`module:function`, called as ``handler(args) -> int``), so that `check` works without
+the flight stack. Exit codes (a contract): 0 success, 1 mission failed or aborted, 2 bad input.
+No frames here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Callable, Sequence
+
+from mexgen_gcs import __version__
+from mexgen_gcs.errors import ConfigError, MexgenError
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+DEFAULT_CONNECT = "udpin://0.0.0.0:14540"
+METHODS = ("mexgen", "pim", "mc")
+
+#: subcommand -> "module:function" of its handler.
+HANDLERS: dict[str, str] = {
+    "sitl": "mexgen_gcs.mission.run:cmd_sitl",
+    "fly": "mexgen_gcs.mission.run:cmd_fly",
+    "analyze": "mexgen_gcs.analysis.cli:cmd_analyze",
+    "replay": "mexgen_gcs.analysis.cli:cmd_replay",
+    "experiment": "mexgen_gcs.experiments.cli:cmd_experiment",
+    "bench": "mexgen_gcs.bench:cmd_bench",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command line."""
+    parser = argparse.ArgumentParser(
+        prog="mexgen-gcs",
+        description="Ground control for finding VHF radio-tagged objects with a multirotor.",
+        epilog="Exit codes: 0 success, 1 mission failed or aborted, 2 bad input.",
+    )
+    parser.add_argument("--version", action="version", version=f"mexgen-gcs {__version__}")
+    parser.add_argument("--log-level", default="warning",
+                        choices=("debug", "info", "warning", "error"),
+                        help="logging level on stderr (default: warning)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    p = sub.add_parser("check", help="validate a mission file and print what it would fly")
+    p.add_argument("mission", metavar="MISSION.yaml")
+
+    p = sub.add_parser("sitl", help="start the simulator and the GCS together and fly the mission")
+    p.add_argument("mission", metavar="MISSION.yaml")
+    _add_flight_options(p)
+    p.add_argument("--speedup", type=_positive_float, default=1.0, metavar="K",
+                   help="simulated time runs K times faster than wall time (default: 1)")
+
+    p = sub.add_parser("fly", help="fly a real vehicle (or any simulator) through MAVSDK")
+    p.add_argument("mission", metavar="MISSION.yaml")
+    _add_flight_options(p)
+    p.add_argument("--connect", default=DEFAULT_CONNECT, metavar="URL",
+                   help=f"MAVSDK connection URL (default: {DEFAULT_CONNECT})")
+    p.add_argument("--radio", default=None, metavar="udp://HOST:PORT",
+                   help="where detections arrive (default: the mission's receiver.listen)")
+
+    p = sub.add_parser("analyze", help="post-flight report and plots from a flight log")
+    p.add_argument("log", metavar="LOG", help="flight log directory or its flight.jsonl")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="where to write the report (default: LOG/report)")
+
+    p = sub.add_parser("replay", help="replay a flight log in the terminal UI")
+    p.add_argument("log", metavar="LOG", help="flight log directory or its flight.jsonl")
+    p.add_argument("--speedup", type=_positive_float, default=1.0, metavar="K",
+                   help="replay K times faster than the flight (default: 1)")
+
+    p = sub.add_parser("experiment", help="batch Monte Carlo runs reproducing the paper")
+    p.add_argument("scenario", choices=("follow", "localise"))
+    p.add_argument("--model", choices=("rw", "cv", "cv-ift", "cv-ift-mismatch"), default="rw")
+    p.add_argument("--methods", default="pim,mc8,mexgen", metavar="M1,M2",
+                   help="comma-separated: pim, mc8 (MC-M with M=8), mexgen (MexGen-512)")
+    p.add_argument("--starts", type=_positive_int, default=50, metavar="N",
+                   help="unique initial states")
+    p.add_argument("--reps", type=_positive_int, default=30, metavar="N",
+                   help="Monte Carlo repetitions per initial state")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="submit the runs to this Dask distributed scheduler instead")
+    p.add_argument("--seed", type=_nonnegative_int, default=0, metavar="S")
+    p.add_argument("--quick", action="store_true",
+                   help="short horizons for a smoke run (minutes, not hours)")
+    p.add_argument("--out", required=True, metavar="DIR")
+
+    p = sub.add_parser("bench", help="benchmarks: filter or planner (median/min/max)")
+    p.add_argument("what", choices=("filter", "planner"))
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--iterations", type=_positive_int, default=None, metavar="N")
+    return parser
+
+
+def _add_flight_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--headless", action="store_true",
+                   help="no terminal UI; progress goes to stderr")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="override planner.method of the mission")
+    p.add_argument("--seed", type=_nonnegative_int, default=None, metavar="N",
+                   help="seed of the GCS's random draws (and of the simulated world for sitl)")
+    p.add_argument("--log-dir", default="flights", metavar="D",
+                   help="flight logs go to a new directory under D (default: flights)")
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, found {text!r}") from None
+    if not value > 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _nonnegative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("expected a whole number >= 1, found 0")
+    return value
+
+
+def _nonnegative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, found {text!r}")
+    return value
+
+
+def _methods(text: str) -> tuple[str, ...]:
+    names = tuple(m.strip() for m in text.split(",") if m.strip())
+    bad = [m for m in names if m not in METHODS]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f"expected methods from {', '.join(METHODS)}, found {text!r}")
+    return names
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Validate a mission; print what it would fly and any warnings."""
+    from mexgen_gcs.config import describe, load_mission
+
+    mission = load_mission(args.mission)
+    print(describe(mission))
+    warnings = mission.warnings()
+    if warnings:
+        print(f"Warnings ({len(warnings)}):")
+        for text in warnings:
+            print(f"  - {text}")
+    else:
+        print("No warnings.")
+    print(f"{args.mission}: OK")
+    return EXIT_OK
+
+
+def resolve_handler(command: str) -> tuple[Callable[[argparse.Namespace], int] | None, str]:
+    """(handler, "") for a subcommand, or (None, why) if this build does not have it.
+
+    A missing handler module or a missing third-party library means "not in this build"; a
+    missing mexgen_gcs module imported by an existing handler module is a bug and is raised.
+    """
+    if command == "check":
+        return cmd_check, ""
+    module_name, _, func_name = HANDLERS[command].partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        missing = exc.name or ""
+        ours = missing == "mexgen_gcs" or missing.startswith("mexgen_gcs.")
+        if ours and not (module_name == missing or module_name.startswith(missing + ".")):
+            raise
+        return None, f"no module {missing}"
+    handler = getattr(module, func_name, None)
+    if not callable(handler):
+        return None, f"{module_name} has no {func_name}"
+    return handler, ""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a usage error (argparse exits 2)
+        return exc.code if isinstance(exc.code, int) else EXIT_BAD_INPUT
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    handler, why = resolve_handler(args.command)
+    if handler is None:
+        print(f"mexgen-gcs {args.command}: not available in this build ({why})",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        return int(handler(args))
+    except ConfigError as exc:
+        print(str(exc), file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except MexgenError as exc:
+        print(f"mexgen-gcs {args.command}: {exc}", file=sys.stderr)
+        return EXIT_FAILED
+    except KeyboardInterrupt:
+        print(f"mexgen-gcs {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

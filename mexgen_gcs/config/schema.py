@@ -1,0 +1,338 @@
+"""Typed schema of the mission file's sections (pydantic v2, frozen, unknown keys forbidden).
+
+Frame: positions in metres are local ENU about the mission home (x east, y north, z up);
+headings are compass degrees (0 = north, clockwise). Every key carries its unit in its name.
+The top-level `Mission` model and its cross-section rules live in `mission.py`, the `sim`
+section in `sim_schema.py`.
+
+Cross-field rules raise `RuleViolation`, a ValueError that carries the key path of each
+problem relative to the model that raised it, so the loader can point at the exact line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
+
+from mexgen_gcs.config.urls import parse_udp_url
+
+KeyPath = tuple[str | int, ...]
+
+Float = Annotated[float, Strict()]
+"""A number (int or float literal); text and booleans are rejected."""
+Int = Annotated[int, Strict()]
+"""A whole number; 1.0, text and booleans are rejected."""
+Str = Annotated[str, Strict()]
+Bool = Annotated[bool, Strict()]
+
+TAG_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,31}$"
+"""Tag ids: 1-32 characters, letters/digits first, then letters, digits, `_`, `.` or `-`."""
+
+TagId = Annotated[str, Strict(), Field(pattern=TAG_ID_PATTERN)]
+FilterMotion = Literal["static", "rw", "cv", "ctra", "cv-ift", "cv-mismatch"]
+
+
+class RuleViolation(ValueError):
+    """One or more cross-field problems, each `(key path relative to the model, message)`."""
+
+    def __init__(self, issues: list[tuple[KeyPath, str]]) -> None:
+        super().__init__("; ".join(msg for _, msg in issues))
+        self.issues = issues
+
+
+def check_rules(issues: list[tuple[KeyPath, str]]) -> None:
+    """Raise RuleViolation if any issue was collected."""
+    if issues:
+        raise RuleViolation(issues)
+
+
+class Section(BaseModel):
+    """Base of every schema model: frozen, unknown keys are errors, no NaN/infinity."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Home(Section):
+    """Take-off point and origin of the local ENU frame."""
+
+    lat_deg: Float = Field(ge=-90.0, le=90.0, description="Latitude of home, degrees WGS84.")
+    lon_deg: Float = Field(ge=-180.0, le=180.0, description="Longitude of home, degrees WGS84.")
+    alt_m: Float = Field(
+        0.0, ge=-500.0, le=9000.0,
+        description="Ground altitude at home, metres AMSL; flight.alt_m is above this.",
+    )
+
+
+class Rectangle(Section):
+    """An axis-aligned rectangle in ENU metres about home."""
+
+    west_m: Float = Field(ge=-50_000.0, le=50_000.0, description="West edge, metres east of home.")
+    east_m: Float = Field(ge=-50_000.0, le=50_000.0, description="East edge, metres east of home.")
+    south_m: Float = Field(
+        ge=-50_000.0, le=50_000.0, description="South edge, metres north of home."
+    )
+    north_m: Float = Field(
+        ge=-50_000.0, le=50_000.0, description="North edge, metres north of home."
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Rectangle:
+        issues: list[tuple[KeyPath, str]] = []
+        if not self.east_m > self.west_m:
+            issues.append((("east_m",), f"expected east_m > west_m ({self.west_m:g}); "
+                                        f"found {self.east_m:g}"))
+        if not self.north_m > self.south_m:
+            issues.append((("north_m",), f"expected north_m > south_m ({self.south_m:g}); "
+                                         f"found {self.north_m:g}"))
+        check_rules(issues)
+        return self
+
+
+LatLon = tuple[
+    Annotated[Float, Field(ge=-90.0, le=90.0)], Annotated[Float, Field(ge=-180.0, le=180.0)]
+]
+
+
+class Area(Section):
+    """The search area: exactly one of `rectangle_m` or `polygon_deg`."""
+
+    rectangle_m: Rectangle | None = Field(
+        None, description="Rectangle in metres about home (ENU): west_m, east_m, south_m, north_m."
+    )
+    polygon_deg: tuple[LatLon, ...] | None = Field(
+        None, min_length=3, max_length=200,
+        description="Simple polygon as [[lat_deg, lon_deg], ...], at least 3 vertices, "
+        "either orientation, not closed (the last vertex joins the first).",
+    )
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> Area:
+        if (self.rectangle_m is None) == (self.polygon_deg is None):
+            found = "both" if self.rectangle_m is not None else "neither"
+            raise RuleViolation([((), f"expected exactly one of rectangle_m or polygon_deg; "
+                                     f"found {found}")])
+        return self
+
+
+class Flight(Section):
+    """How the vehicle flies the search."""
+
+    alt_m: Float = Field(50.0, gt=0.0, le=1000.0, description="Flight altitude above home, metres.")
+    speed_m_s: Float = Field(10.0, gt=0.0, le=40.0, description="Horizontal cruise speed, m/s.")
+    max_accel_m_s2: Float = Field(
+        4.0, gt=0.0, le=20.0, description="Horizontal acceleration the planner assumes, m/s^2."
+    )
+
+
+class TagSpec(Section):
+    """One radio tag to find."""
+
+    id: TagId = Field(description="Tag id as it appears in detections, e.g. T1.")
+    freq_hz: Int = Field(
+        gt=0, le=100_000_000_000, description="Carrier frequency, Hz (e.g. 150100000)."
+    )
+
+
+class RadioSection(Section):
+    """Radio measurement and detection model (fields of core RadioModel, same names)."""
+
+    p0_db: Float = Field(-7.0, ge=-200.0, le=100.0,
+                         description="Received power at the reference distance d0_m, dB.")
+    d0_m: Float = Field(1.0, gt=0.0, le=1000.0, description="Reference distance, metres.")
+    path_loss_exponent: Float = Field(1.5, gt=0.0, le=10.0, description="Path-loss exponent n.")
+    noise_std_db: Float = Field(2.5, gt=0.0, le=50.0,
+                                description="Standard deviation of the measurement noise, dB.")
+    front_back_db: Float = Field(3.0, ge=0.0, le=60.0,
+                                 description="Antenna loss towards the tail vs the nose, dB.")
+    sensitivity_db: Float = Field(-60.0, ge=-200.0, le=100.0,
+                                  description="Power at which half of pd_max is detected, dB.")
+    detection_spread_db: Float = Field(2.0, gt=0.0, le=50.0,
+                                       description="Width of the detection threshold, dB.")
+    pd_max: Float = Field(0.95, ge=0.0, le=1.0,
+                          description="Detection probability far above the sensitivity.")
+    min_distance_m: Float = Field(1.0, gt=0.0, le=1000.0,
+                                  description="Distances below this are clamped, metres.")
+    clutter_rate: Float = Field(0.01, ge=0.0, le=100.0,
+                                description="Spurious detections per tag channel per pulse.")
+    clutter_min_db: Float = Field(-90.0, ge=-300.0, le=100.0,
+                                  description="Lowest power of a clutter detection, dB.")
+    clutter_max_db: Float = Field(0.0, ge=-300.0, le=100.0,
+                                  description="Highest power of a clutter detection, dB.")
+
+    @model_validator(mode="after")
+    def _clutter_range(self) -> RadioSection:
+        if not self.clutter_max_db > self.clutter_min_db:
+            raise RuleViolation([(("clutter_max_db",), f"expected clutter_max_db > clutter_min_db "
+                                  f"({self.clutter_min_db:g}); found {self.clutter_max_db:g}")])
+        return self
+
+
+class Receiver(Section):
+    """Where and how detections arrive (detection wire format v1 over UDP)."""
+
+    listen: Str = Field("udp://0.0.0.0:14600",
+                        description="UDP address to listen on, udp://HOST:PORT.")
+    allowed_sources: tuple[Str, ...] = Field(
+        ("127.0.0.1/32",), max_length=64,
+        description="Networks (CIDR) datagrams may come from; an empty list accepts any source.",
+    )
+    freq_tolerance_hz: Float = Field(
+        5000.0, gt=0.0, le=1_000_000.0,
+        description="A reported frequency maps to a tag within this many Hz.",
+    )
+    pulse_period_s: Float = Field(1.0, gt=0.0, le=60.0, description="Tag pulse period, seconds.")
+    max_clock_skew_s: Float = Field(
+        30.0, gt=0.0, le=86_400.0,
+        description="Detections whose timestamp is further than this from now are rejected, s.",
+    )
+    heartbeat_timeout_s: Float = Field(
+        3.0, gt=0.0, le=600.0, description="The receiver counts as silent after this long, s."
+    )
+
+    @field_validator("listen")
+    @classmethod
+    def _listen_url(cls, value: str) -> str:
+        parse_udp_url(value)
+        return value
+
+    @field_validator("allowed_sources")
+    @classmethod
+    def _networks(cls, value: tuple[str, ...]) -> tuple[str, ...]:
+        issues: list[tuple[KeyPath, str]] = []
+        for i, text in enumerate(value):
+            try:
+                ipaddress.ip_network(text, strict=True)
+            except ValueError as exc:
+                hint = ""
+                with contextlib.suppress(ValueError):
+                    hint = f" (did you mean {ipaddress.ip_network(text, strict=False)}?)"
+                issues.append(((i,), f"expected a network like 127.0.0.1/32; found {text!r}: "
+                                     f"{exc}{hint}"))
+        check_rules(issues)
+        return value
+
+    def networks(self) -> tuple[ipaddress.IPv4Network | ipaddress.IPv6Network, ...]:
+        """`allowed_sources` parsed; empty = any source."""
+        return tuple(ipaddress.ip_network(text) for text in self.allowed_sources)
+
+
+class FilterSection(Section):
+    """Per-tag Bernoulli particle filter and the motion model it assumes."""
+
+    motion: FilterMotion = Field(
+        "rw", description="Motion model the filter assumes: static, rw, cv, ctra, cv-ift, "
+        "cv-mismatch (CV with mismatch_accel_std_m_s2, standing in for a CV-IFT truth).",
+    )
+    rw_std_m_per_sqrt_s: Float = Field(0.5, ge=0.0, le=100.0,
+                                       description="Random-walk position noise, m/sqrt(s).")
+    accel_std_m_s2: Float = Field(0.1, ge=0.0, le=50.0,
+                                  description="Acceleration noise of cv/ctra/cv-ift, m/s^2.")
+    mismatch_accel_std_m_s2: Float = Field(
+        1.0, ge=0.0, le=50.0, description="Acceleration noise of cv-mismatch, m/s^2."
+    )
+    turn_rate_deg_s: Float = Field(12.5, ge=0.0, le=180.0,
+                                   description="Turn rate of ctra/cv-ift turns, deg/s.")
+    speed_min_m_s: Float = Field(0.0, ge=0.0, le=100.0,
+                                 description="Slowest initial particle speed, m/s.")
+    speed_max_m_s: Float = Field(6.0, ge=0.0, le=100.0,
+                                 description="Fastest initial particle speed, m/s.")
+    n_particles: Int = Field(2000, ge=10, le=1_000_000, description="Particles per tag.")
+    survival_prob: Float = Field(0.999, ge=0.0, le=1.0,
+                                 description="Probability a tag persists per pulse period.")
+    birth_prob: Float = Field(0.001, ge=0.0, le=1.0,
+                              description="Probability a tag appears per pulse period.")
+    initial_existence: Float = Field(0.9, ge=0.0, le=1.0,
+                                     description="Existence probability before any pulse.")
+    resample_ess_fraction: Float = Field(
+        0.5, gt=0.0, le=1.0, description="Resample when ESS falls below this fraction of N."
+    )
+    roughening_k: Float = Field(0.2, ge=0.0, le=10.0,
+                                description="Roughening constant after resampling.")
+
+    @model_validator(mode="after")
+    def _speeds(self) -> FilterSection:
+        if self.speed_min_m_s > self.speed_max_m_s:
+            raise RuleViolation([(("speed_min_m_s",), f"expected speed_min_m_s <= speed_max_m_s "
+                                  f"({self.speed_max_m_s:g}); found {self.speed_min_m_s:g}")])
+        return self
+
+
+class Planner(Section):
+    """Information-gain planner: which measurement generator and its horizon."""
+
+    method: Literal["mexgen", "pim", "mc"] = Field(
+        "mexgen", description="Measurement generator: mexgen (MexGen-M), pim or mc (MC-M)."
+    )
+    samples: Int = Field(512, ge=1, le=1_000_000, description="MexGen samples M.")
+    mc_rollouts: Int = Field(8, ge=1, le=10_000, description="MC rollouts per action (MC-M).")
+    n_particles: Int = Field(1000, ge=10, le=1_000_000,
+                             description="Particles drawn from the filter for planning.")
+    replan_interval_s: Float = Field(5.0, gt=0.0, le=3600.0, description="Replan period, s.")
+    lookahead_s: Float = Field(20.0, gt=0.0, le=3600.0, description="Planning horizon, s.")
+    step_s: Float = Field(1.0, gt=0.0, le=600.0, description="Horizon step, s.")
+    discount: Float = Field(0.95, gt=0.0, le=1.0, description="Discount factor per step.")
+    alpha: Float = Field(0.1, gt=0.0, le=100.0, description="Renyi divergence alpha (not 1).")
+    target: Literal["closest", "all"] = Field(
+        "closest", description="Plan for the closest unlocalised tag or all unlocalised tags."
+    )
+    action_cost_weight: Float = Field(0.0, ge=0.0, le=1e6,
+                                      description="Weight of the action cost in the reward.")
+
+    @model_validator(mode="after")
+    def _steps(self) -> Planner:
+        issues: list[tuple[KeyPath, str]] = []
+        if self.step_s > self.lookahead_s:
+            issues.append((("step_s",), f"expected step_s <= lookahead_s ({self.lookahead_s:g}); "
+                                        f"found {self.step_s:g}"))
+        if self.alpha == 1.0:
+            issues.append((("alpha",), "expected alpha != 1 (the Renyi divergence is undefined "
+                                       "at 1); found 1"))
+        check_rules(issues)
+        return self
+
+
+class Localisation(Section):
+    """When a tag counts as localised."""
+
+    radius_m: Float = Field(50.0, gt=0.0, le=100_000.0,
+                            description="Uncertainty radius a tag must shrink to, metres.")
+    confidence: Float = Field(0.95, gt=0.0, lt=1.0,
+                              description="Probability mass inside radius_m.")
+    min_existence: Float = Field(0.5, ge=0.0, le=1.0,
+                                 description="Existence probability a localised tag needs.")
+
+
+class Follow(Section):
+    """Which tag to follow, for kind = follow."""
+
+    tag: TagId = Field(description="Id of the tag to follow (one of tags).")
+    duration_s: Float = Field(600.0, gt=0.0, le=86_400.0,
+                              description="How long to follow, seconds.")
+
+
+class Safety(Section):
+    """Limits and failsafes."""
+
+    max_mission_time_s: Float = Field(1800.0, gt=0.0, le=86_400.0,
+                                      description="Return home after this long, seconds.")
+    battery_rtl_percent: Float = Field(25.0, ge=0.0, lt=100.0,
+                                       description="Return home at this battery level, percent.")
+    link_loss_timeout_s: Float = Field(3.0, gt=0.0, le=600.0,
+                                       description="Vehicle link counts as lost after this, s.")
+    on_link_regained: Literal["resume", "rtl"] = Field(
+        "resume", description="After a link loss: resume the mission or return home."
+    )
+    radio_loss_timeout_s: Float = Field(
+        15.0, gt=0.0, le=3600.0,
+        description="Hold while the receiver is silent; return home after this long, seconds.",
+    )
+    geofence_margin_m: Float = Field(50.0, ge=0.0, le=10_000.0,
+                                     description="Geofence distance outside the area, metres.")
+    upload_geofence: Bool = Field(True, description="Upload the geofence to the vehicle.")
+    home_max_distance_m: Float = Field(
+        500.0, ge=0.0, le=100_000.0,
+        description="Home must be inside the area or at most this far outside, metres.",
+    )

@@ -1,0 +1,261 @@
+"""Flight log: one directory per flight, `flight.jsonl` with one JSON object per line.
+
+Contract (ARCHITECTURE.md): every record has `t` (unix s) and `type`; the file is written
+append-only and flushed per record, so a crash loses at most the line being written, and
+readers skip a torn last line. The first record is `type: "mission"` with `format`
+("mexgen-flightlog"), `format_version`, the resolved mission, the mission file path and text,
+software versions, seed and method. Positions inside records are whatever the writer says
+(ENU metres about home for estimates, WGS84 for telemetry); the log does not convert frames.
+
+Values are made JSON-safe on the way in: numpy scalars/arrays become Python numbers/lists,
+NaN and infinities become null, tuples become lists, dataclasses and pydantic models dicts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import importlib.metadata
+import json
+import math
+import os
+import platform
+import time
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any
+
+import numpy as np
+
+from mexgen_gcs.errors import LogFormatError
+
+if TYPE_CHECKING:
+    from mexgen_gcs.config.mission import Mission
+
+FORMAT = "mexgen-flightlog"
+FORMAT_VERSION = 1
+LOG_FILE = "flight.jsonl"
+
+
+def to_jsonable(value: Any) -> Any:
+    """A JSON-safe copy of value: numpy -> Python, NaN/inf -> None, tuples -> lists."""
+    if value is None or isinstance(value, bool | str):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, int):
+        return value
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return to_jsonable(value.item())
+    if isinstance(value, Mapping):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple | set | frozenset):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, enum.Enum):
+        return to_jsonable(value.value)
+    if isinstance(value, Path):
+        return str(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: to_jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    dump = getattr(value, "model_dump", None)
+    if callable(dump):
+        return to_jsonable(dump(mode="json"))
+    raise TypeError(f"cannot write a {type(value).__name__} to a flight log")
+
+
+def software_versions() -> dict[str, str | None]:
+    """Versions of mexgen_gcs and the libraries that decide what flies."""
+    from mexgen_gcs import __version__
+
+    out: dict[str, str | None] = {"mexgen_gcs": __version__, "python": platform.python_version()}
+    for dist in ("numpy", "mavsdk", "pymavlink"):
+        try:
+            out[dist] = importlib.metadata.version(dist)
+        except importlib.metadata.PackageNotFoundError:
+            out[dist] = None
+    return out
+
+
+class JsonlWriter:
+    """Append-only JSON-lines file: `write(type, **fields)` adds `t` and `type`, flushes each
+    record, and fsyncs it too if `fsync=True`. Creates the parent directory; refuses to
+    overwrite an existing file."""
+
+    def __init__(self, path: str | os.PathLike[str], *, fsync: bool = False,
+                 clock: Callable[[], float] = time.time) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file: IO[str] | None = open(self.path, "x", encoding="utf-8")  # noqa: SIM115
+        self._fsync = fsync
+        self._clock = clock
+        self.records = 0
+
+    def write(self, type: str, **fields: Any) -> dict[str, Any]:
+        """Append one record; `t` defaults to the clock. Returns the record as written."""
+        if self._file is None:
+            raise ValueError(f"{self.path} is closed")
+        t = fields.pop("t", None)
+        record = {"t": self._clock() if t is None else t, "type": type, **fields}
+        safe = to_jsonable(record)
+        line = json.dumps(safe, separators=(",", ":"), allow_nan=False) + "\n"
+        self._file.write(line)
+        self._file.flush()
+        if self._fsync:
+            os.fsync(self._file.fileno())
+        self.records += 1
+        return safe
+
+    @property
+    def closed(self) -> bool:
+        return self._file is None
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> JsonlWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class FlightLogWriter(JsonlWriter):
+    """`<log_dir>/flight.jsonl`, starting with the mission record."""
+
+    def __init__(
+        self,
+        log_dir: str | os.PathLike[str],
+        mission: Mission,
+        *,
+        seed: int | None = None,
+        method: str | None = None,
+        fsync: bool = False,
+        clock: Callable[[], float] = time.time,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.log_dir = Path(log_dir)
+        super().__init__(self.log_dir / LOG_FILE, fsync=fsync, clock=clock)
+        from mexgen_gcs.config.describe import dump_resolved
+
+        self.write(
+            "mission",
+            format=FORMAT,
+            format_version=FORMAT_VERSION,
+            mission=dump_resolved(mission),
+            mission_path=mission.source_path,
+            mission_text=mission.source_text,
+            versions=software_versions(),
+            seed=seed,
+            method=method if method is not None else mission.planner.method,
+            **dict(extra or {}),
+        )
+
+
+def new_log_dir(base_dir: str | os.PathLike[str], name: str,
+                clock: Callable[[], float] = time.time) -> Path:
+    """A fresh directory `<base_dir>/<YYYYmmdd-HHMMSS>-<name>[-N]`, created."""
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(clock()))
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "flight"
+    base = Path(base_dir)
+    base.mkdir(parents=True, exist_ok=True)
+    for n in range(1000):
+        path = base / (f"{stamp}-{safe}" + (f"-{n}" if n else ""))
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(f"no free log directory name under {base}")
+
+
+@dataclass(frozen=True)
+class FlightLog:
+    """A read flight log. `torn_last_line` says a partial last line was skipped."""
+
+    path: Path
+    records: list[dict[str, Any]]
+    torn_last_line: bool = False
+    skipped_lines: int = field(default=0)
+
+    @property
+    def header(self) -> dict[str, Any]:
+        """The first record (type mission)."""
+        return self.records[0]
+
+    def of_type(self, type: str) -> Iterator[dict[str, Any]]:
+        return (r for r in self.records if r.get("type") == type)
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        return iter(self.records)
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+
+def read_flight_log(path: str | os.PathLike[str]) -> FlightLog:
+    """Read `flight.jsonl` (or the directory holding it). Skips a torn last line; raises
+    LogFormatError for anything that is not a flight log of a format this code reads."""
+    file = Path(path)
+    if file.is_dir():
+        file = file / LOG_FILE
+    try:
+        text = file.read_bytes().decode("utf-8", errors="replace")
+    except FileNotFoundError:
+        raise LogFormatError(f"{file}: no such flight log") from None
+    except OSError as exc:
+        raise LogFormatError(f"{file}: cannot read: {exc.strerror}") from None
+    lines = text.split("\n")
+    complete, last = lines[:-1], lines[-1]  # `last` is "" when the file ends with a newline
+    records: list[dict[str, Any]] = []
+    torn = False
+    for n, line in enumerate(complete, start=1):
+        if not line.strip():
+            continue
+        records.append(_parse_line(file, n, line, is_last=False))
+    if last.strip():
+        try:
+            records.append(_parse_line(file, len(complete) + 1, last, is_last=True))
+        except _TornLine:
+            torn = True
+    _check_header(file, records)
+    return FlightLog(file, records, torn, int(torn))
+
+
+class _TornLine(Exception):
+    pass
+
+
+def _parse_line(file: Path, n: int, line: str, *, is_last: bool) -> dict[str, Any]:
+    try:
+        record = json.loads(line)
+    except ValueError:
+        if is_last:
+            raise _TornLine from None
+        raise LogFormatError(f"{file}:{n}: not a JSON line; the log is damaged before its "
+                             "last line") from None
+    if not isinstance(record, dict) or "t" not in record or "type" not in record:
+        if n == 1:
+            raise LogFormatError(f"{file}: not a mexgen flight log (the first line has no "
+                                 "'t' and 'type')")
+        raise LogFormatError(f"{file}:{n}: record without 't' and 'type'")
+    return record
+
+
+def _check_header(file: Path, records: list[dict[str, Any]]) -> None:
+    if not records:
+        raise LogFormatError(f"{file}: empty; not a mexgen flight log")
+    head = records[0]
+    if head.get("type") != "mission" or head.get("format") != FORMAT:
+        raise LogFormatError(f"{file}: not a mexgen flight log (expected a first record of type "
+                             f"'mission' with format '{FORMAT}')")
+    version = head.get("format_version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise LogFormatError(f"{file}: unknown flight log format_version {version!r}")
+    if version > FORMAT_VERSION:
+        raise LogFormatError(f"{file}: flight log format_version {version} is newer than this "
+                             f"mexgen-gcs reads ({FORMAT_VERSION}); upgrade mexgen-gcs to read it")
