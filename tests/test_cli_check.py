@@ -123,20 +123,22 @@ def test_documented_flags_parse() -> None:
     a = parser.parse_args(["analyze", "L", "--out", "O"])
     assert (a.log, a.out) == ("L", "O")
     assert parser.parse_args(["replay", "L"]).log == "L"
-    a = parser.parse_args(["experiment", "a.yaml", "b.yaml", "--methods", "mexgen,pim",
-                           "--runs", "2", "--workers", "4"])
-    assert (a.mission, a.methods, a.runs, a.workers) == (["a.yaml", "b.yaml"],
-                                                         ("mexgen", "pim"), 2, 4)
-    assert parser.parse_args(["bench"]).methods == ("mexgen", "pim", "mc")
+    a = parser.parse_args(["experiment", "localise", "--model", "cv-ift", "--methods",
+                           "mexgen,pim", "--starts", "2", "--reps", "3", "--workers", "4",
+                           "--out", "D"])
+    assert (a.scenario, a.model, a.methods, a.starts, a.reps, a.workers, a.out) == (
+        "localise", "cv-ift", "mexgen,pim", 2, 3, 4, "D")
+    a = parser.parse_args(["bench", "planner", "--json"])
+    assert (a.what, a.json) == ("planner", True)
 
 
 def test_missing_handler_module_is_not_available(monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     monkeypatch.setitem(cli.HANDLERS, "bench", "mexgen_gcs.no_such_module:cmd_bench")
-    assert cli.main(["bench"]) == 2
+    assert cli.main(["bench", "filter"]) == 2
     assert "mexgen-gcs bench: not available in this build" in capsys.readouterr().err
     monkeypatch.setitem(cli.HANDLERS, "bench", "mexgen_gcs.cli:no_such_function")
-    assert cli.main(["bench"]) == 2
+    assert cli.main(["bench", "filter"]) == 2
     assert "not available in this build" in capsys.readouterr().err
 
 
