@@ -22,7 +22,8 @@ from numpy.typing import NDArray
 
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, TagEstimate
-from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.motion import MotionModel
+from mexgen_gcs.core.planner import TagBelief, VehicleState
 from mexgen_gcs.core.radio import RadioModel
 
 FloatArray = NDArray[np.float64]
@@ -48,27 +49,6 @@ class PulseReport:
     updated: dict[str, str]
     """tag -> 'detection' | 'missed' | 'predict-only'."""
     newly_localised: tuple[Localised, ...]
-
-
-@dataclass(frozen=True, slots=True)
-class VehicleState:
-    """Where the vehicle is for planning: ENU position (3,), ENU velocity (2,), heading."""
-
-    xyz_m: FloatArray
-    v_xy_m_s: FloatArray
-    yaw_rad: float
-
-
-@dataclass(frozen=True, slots=True)
-class TagBelief:
-    """An equal-weight particle belief of one tag for the planner."""
-
-    tag_id: str
-    states: FloatArray
-    """(N, 4) [x, y, vx, vy]."""
-    modes: ModeArray
-    motion: MotionModel
-    existence: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -221,7 +201,7 @@ class MissionCore:
         for tid in targets:
             f = self.filters[tid]
             states, modes = f.sample(self.planning_particles, self.rng)
-            beliefs.append(TagBelief(tid, states, modes, self.motion, f.existence))
+            beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence)))
         return PlanRequest(t, vehicle, tuple(beliefs))
 
     def all_localised(self) -> bool:

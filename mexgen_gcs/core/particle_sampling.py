@@ -1,0 +1,180 @@
+"""Drawing particle indices from many weighted rows at once (used by the MexGen and MC
+generators; a row is one tag x action x rollout of the planner).
+
+No positions here, only weights. Two samplers, both vectorised over every row:
+
+- :func:`stratified_counts` / :func:`stratified_indices`: n draws per row, one uniform in each
+  stratum [j/n, (j+1)/n) pushed through the row's inverse CDF. Each particle's number of draws
+  follows in closed form from the CDF (no search at all), so the cost is O(N + n) per row. The
+  draws are an unbiased sample of the row's distribution whose sample mean has a variance no
+  larger than with independent draws (stratification with proportional allocation never
+  increases it).
+- :func:`iid_indices`: n independent draws per row by a two-level inverse CDF (blocks of 16
+  particles, then the particle within the block).
+
+Why not ``cumsum`` + ``searchsorted``: numpy's cumsum runs ~3.5 ns per element and a random
+binary search ~65 ns per query on this class of CPU (branch mispredictions), which at 8 x 512
+draws per look-ahead step would cost more than the rest of a plan. Block sums come from one
+small float32 matrix product with an upper-triangular matrix instead. CDFs are accumulated in
+float32 within blocks of 16 and in float64 across blocks (relative error ~1e-7).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.floating]
+IntArray = NDArray[np.intp]
+
+_BLOCK = 16
+_UPPER = np.triu(np.ones((_BLOCK, _BLOCK), dtype=np.float32))
+_ONES = np.ones(_BLOCK, dtype=np.float32)
+_MATMUL_CUMSUM_MAX = 256
+"""Block CDFs with up to this many blocks are accumulated by a matrix product too."""
+
+
+@lru_cache(maxsize=32)
+def _upper(n: int) -> NDArray[np.float32]:
+    return np.triu(np.ones((n, n), dtype=np.float32))
+
+
+def _rows(weights: FloatArray) -> tuple[tuple[int, ...], int, int, NDArray[np.float32]]:
+    w = np.asarray(weights)
+    if w.ndim < 1 or w.shape[-1] == 0:
+        raise ValueError("weights need a non-empty last (particle) axis")
+    batch, n = w.shape[:-1], w.shape[-1]
+    rows = math.prod(batch)
+    return batch, rows, n, np.ascontiguousarray(w.reshape(rows, n), dtype=np.float32)
+
+
+def _blocks(w: NDArray[np.float32]) -> NDArray[np.float32]:
+    """(rows, N) -> (rows, ceil(N / 16), 16); zero weights in the padding (a copy only then)."""
+    rows, n = w.shape
+    nb = -(-n // _BLOCK)
+    if nb * _BLOCK != n:
+        padded = np.zeros((rows, nb * _BLOCK), dtype=np.float32)
+        padded[:, :n] = w
+        w = padded
+    return w.reshape(rows, nb, _BLOCK)
+
+
+def _cdf32(w: NDArray[np.float32]) -> NDArray[np.float32]:
+    """Un-normalised cumulative sums of (rows, N) float32 weights, (rows, N) float32."""
+    rows, n = w.shape
+    blocks = _blocks(w)
+    nb = blocks.shape[1]
+    cdf = np.matmul(blocks.reshape(rows * nb, _BLOCK), _UPPER).reshape(rows, nb, _BLOCK)
+    starts = np.cumsum(cdf[:, :-1, -1], axis=-1, dtype=np.float64).astype(np.float32)
+    cdf[:, 1:, :] += starts[:, :, None]
+    return cdf.reshape(rows, nb * _BLOCK)[:, :n]
+
+
+def row_cdf(weights: FloatArray, normalise: bool = True) -> NDArray[np.float64]:
+    """Cumulative sums of each row of (rows, N) weights: float64 (rows, N). Normalised: the last
+    column exactly 1 (every row needs a positive sum). O(rows N)."""
+    _, _, _, w = _rows(weights)
+    cdf = _cdf32(w).astype(np.float64)
+    if normalise:
+        cdf /= cdf[:, -1:]
+    return cdf
+
+
+def stratified_counts(
+    mass: FloatArray,
+    n_draws: int,
+    rng: np.random.Generator,
+    dtype: type[np.number] = np.int64,
+) -> NDArray[np.number]:
+    """Stratified draws over each row's particles plus an implicit "none" outcome: counts.
+
+    mass: (B..., N) non-negative with row sums <= 1 (up to float rounding); particle i has
+    probability mass[..., i], "none" the rest. One uniform U_j per stratum [j/n, (j+1)/n) goes
+    through the inverse CDF; the number of draws below a CDF value x is ``k + [U_k < x n - k]``
+    with ``k = floor(x n)``, so particle i gets ``below(cdf_i) - below(cdf_(i-1))`` draws
+    without any search. Returns (B..., N) counts as ``dtype`` (float32 is exact and saves a
+    conversion for a following dot product); row sums <= n_draws. O(N + n) per row.
+    """
+    if n_draws < 1:
+        raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
+    batch, _, n, m = _rows(mass)
+    counts = _counts_below(_cdf32(m), n_draws, rng)
+    return counts.reshape(*batch, n).astype(dtype, copy=False)
+
+
+def stratified_indices(weights: FloatArray, n_draws: int, rng: np.random.Generator) -> IntArray:
+    """n_draws stratified draws of particle indices per row (sorted within the row).
+
+    weights: (B..., N) non-negative, each row with a positive sum (need not be normalised).
+    Returns (B..., n_draws) indices in [0, N); see :func:`stratified_counts`.
+    """
+    if n_draws < 1:
+        raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
+    batch, rows, n, w = _rows(weights)
+    cdf = _cdf32(w)
+    cdf /= cdf[:, -1:]
+    cdf[:, -1] = 1.0  # every row ends at exactly 1: n_draws per row
+    counts = _counts_below(cdf, n_draws, rng).astype(np.intp)
+    idx = np.repeat(np.tile(np.arange(n), rows), counts.ravel())
+    return idx.reshape(*batch, n_draws)
+
+
+def _counts_below(
+    cdf: NDArray[np.float32], n_draws: int, rng: np.random.Generator
+) -> NDArray[np.float32]:
+    """Per-particle stratified draw counts (float32) from (rows, N) CDFs in [0, 1]."""
+    rows = cdf.shape[0]
+    y = np.minimum(cdf, np.float32(1.0))
+    y *= np.float32(n_draws)
+    k = np.minimum(y, np.float32(n_draws - 1))
+    np.floor(k, out=k)
+    y -= k  # fraction within the stratum; 1 only at x = 1, where the count is n
+    flat = k.astype(np.int32)
+    flat += (np.arange(rows, dtype=np.int32) * np.int32(n_draws))[:, None]
+    u = rng.random(rows * n_draws, dtype=np.float32)
+    k += u.take(flat) < y
+    return np.diff(k, axis=-1, prepend=np.float32(0.0))
+
+
+def iid_indices(weights: FloatArray, n_draws: int, rng: np.random.Generator) -> IntArray:
+    """n_draws independent draws of particle indices per row, in proportion to the weights.
+
+    weights: (B..., N) non-negative, each row with a positive sum. Returns (B..., n_draws).
+    First a block of 16 particles by the inverse CDF of the block totals, then the particle
+    within the block. O(N) per row + O(n_draws (log(N / 16) + 16)).
+    """
+    if n_draws < 1:
+        raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
+    batch, rows, n, w = _rows(weights)
+    blocks = _blocks(w)
+    nb = blocks.shape[1]
+    totals = np.matmul(blocks, _ONES)  # (rows, nb) float32
+    if nb <= _MATMUL_CUMSUM_MAX:
+        ends = np.matmul(totals, _upper(nb)).astype(np.float64)
+    else:
+        ends = np.cumsum(totals, axis=-1, dtype=np.float64)
+    scale = ends[:, -1:]
+    target = rng.random((rows, n_draws)) * scale  # in units of the row's total weight
+    row_base = np.arange(rows)[:, None]
+    if n_draws * 8 <= nb:
+        # Few draws: count the block ends at or below the target (no search).
+        block = np.count_nonzero(ends[:, None, :] <= target[:, :, None], axis=-1)
+    else:
+        # Rows' block CDFs laid end to end, row r shifted to [r, r + 1]: one searchsorted.
+        keys = ends / scale
+        keys += row_base
+        block = np.searchsorted(keys.ravel(), (target / scale + row_base).ravel(), side="right")
+        block = block.reshape(rows, n_draws) - row_base * nb
+    np.minimum(block, nb - 1, out=block)
+    np.maximum(block, 0, out=block)
+    flat_block = (block + row_base * nb).ravel()
+    start = (ends.ravel()[flat_block] - totals.ravel()[flat_block]).reshape(target.shape)
+    residual = (target - start).astype(np.float32)
+    within = np.matmul(blocks.reshape(rows * nb, _BLOCK)[flat_block], _UPPER)
+    j = np.count_nonzero(within <= residual.reshape(-1, 1), axis=-1).reshape(rows, n_draws)
+    idx = block * _BLOCK + np.minimum(j, _BLOCK - 1)
+    np.minimum(idx, n - 1, out=idx)
+    return idx.reshape(*batch, n_draws)

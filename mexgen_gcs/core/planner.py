@@ -1,0 +1,360 @@
+"""The rollout planner: choose the next heading by discounted Renyi information gain (paper
+section 4, "Path planning", eq. reward_sum and eq. expected_reward).
+
+Frame: local ENU metres about home (x east, y north, z up; tags on the ground at z = 0).
+Headings are compass headings (0 = north, 90 deg = east, clockwise).
+
+For each action (a heading held over the look-ahead, see :mod:`core.paths`) and each look-ahead
+step k = 1..H (every ``step_s``, by default every tag pulse):
+
+1. predict: propagate the particles with the tag's motion model. Tag motion does not depend on
+   the action, so one propagation per step serves every action (and MC rollout);
+2. measure: generate a measurement from the predicted belief with the configured generator
+   (PIM, MexGen-M or MC-M, :mod:`core.generators`), for every row at once;
+3. update: weight the particles by the likelihood of that measurement (pD N(z; P, R) for a
+   detection, 1 - pD for a miss, :mod:`core.likelihood`);
+4. reward: add ``discount^(k-1) * Renyi(updated, predicted)`` (:mod:`core.reward`).
+
+An action's value is the mean over its rollouts (MC-M: M rollouts; otherwise one) summed over
+the planned tags, minus ``action_cost_weight * turn_cost`` (the turn from the current course,
+in [0, 1], charged once). Actions whose path leaves the search area within the pruning horizon
+are pruned (reward -inf, never chosen); if every action is pruned the heading nearest the
+bearing to the area centre is returned with ``all_pruned`` set.
+
+Everything is vectorised over tags x actions x rollouts x particles as float32 arrays (T, A, R,
+N) in :mod:`core.rollout`; the only Python loops are over look-ahead steps and, for the
+prediction, over tags. Tags are stacked when they have the same particle count (the normal
+case: the caller resamples every belief to ``planner.n_particles``); otherwise groups of equal
+size are planned in turn. A :class:`Planner` keeps its working arrays between plans (use one
+per planning thread); :func:`plan` is the one-off form.
+
+Per-stage wall times (``time.perf_counter``; measuring only, the core reads no clock for its
+decisions): predict = motion model; measure = the generator; update = evaluating the noiseless
+measurement of every particle from every action's pose (a grid the generators also read) and
+the weight update; reward = divergence and discounting.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.generators import MeasurementGenerator, MethodName, make_generator
+from mexgen_gcs.core.likelihood import detection_table
+from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.paths import (
+    PRUNE_SUBSTEPS,
+    action_headings_rad,
+    compass_bearing_rad,
+    fine_times_s,
+    inside_test,
+    leaves_area,
+    vehicle_paths,
+)
+from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.reward import turn_cost
+from mexgen_gcs.core.rollout import PlanningBelief, Workspace, rollout_gains
+from mexgen_gcs.errors import ConfigError, PlannerError
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+STAGES = ("predict", "measure", "update", "reward")
+"""Keys of :attr:`PlanResult.timing_s`."""
+
+_COURSE_MIN_SPEED_M_S = 0.5
+"""Below this horizontal speed the current course is taken from the yaw."""
+_PAD = 16
+"""The rollout pads the particle axis to a multiple of this (the samplers' block size)."""
+_GRID_CHUNK = 1 << 16
+"""Particle x action x tag evaluations of the power grid per call (bounds the temporaries)."""
+
+
+@dataclass(frozen=True, slots=True)
+class PlannerConfig:
+    """Planner settings; the mission's ``planner`` and ``flight`` sections map onto these."""
+
+    method: MethodName = "mexgen"
+    """Measurement generator: "pim" | "mexgen" | "mc"."""
+    samples: int = 512
+    """MexGen M: measurement samples per action and step."""
+    mc_rollouts: int = 8
+    """MC-M: rollouts per action."""
+    lookahead_s: float = 20.0
+    """Look-ahead horizon (paper: 20 s to localise, 10 s to follow)."""
+    step_s: float = 1.0
+    """Time between simulated measurements (one tag pulse period)."""
+    discount: float = 0.95
+    """lambda in (0, 1]: weight of step k is lambda^(k-1)."""
+    alpha: float = 0.1
+    """Order of the Renyi divergence (> 0, != 1)."""
+    n_headings: int = 8
+    """Actions: this many compass headings from north (8: N, NE, ..., NW)."""
+    speed_m_s: float = 10.0
+    """Commanded horizontal speed of every action."""
+    max_accel_m_s2: float = 4.0
+    """Horizontal acceleration limit of the vehicle (paths start from its current velocity)."""
+    action_cost_weight: float = 0.0
+    """Weight of the turn cost |heading - course| / 180 deg subtracted from an action's value."""
+    prune_horizon_s: float | None = None
+    """An action is pruned if its path leaves the area within this time; None = the look-ahead."""
+
+    def __post_init__(self) -> None:
+        checks: list[tuple[str, bool, str]] = [
+            ("method", self.method in ("pim", "mexgen", "mc"), "one of pim, mexgen, mc"),
+            ("samples", self.samples >= 1, ">= 1"),
+            ("mc_rollouts", self.mc_rollouts >= 1, ">= 1"),
+            ("step_s", self.step_s > 0.0, "> 0"),
+            ("lookahead_s", self.lookahead_s >= self.step_s, ">= step_s"),
+            ("discount", 0.0 < self.discount <= 1.0, "in (0, 1]"),
+            ("alpha", self.alpha > 0.0 and self.alpha != 1.0, "> 0 and != 1"),
+            ("n_headings", self.n_headings >= 1, ">= 1"),
+            ("speed_m_s", self.speed_m_s > 0.0, "> 0"),
+            ("max_accel_m_s2", self.max_accel_m_s2 > 0.0, "> 0"),
+            ("action_cost_weight", self.action_cost_weight >= 0.0, ">= 0"),
+            ("prune_horizon_s", self.prune_horizon_s is None or self.prune_horizon_s > 0.0,
+             "> 0 or null"),
+        ]
+        for name, ok, need in checks:
+            if not ok:
+                raise ConfigError(f"planner.{name} must be {need} (got {getattr(self, name)!r})")
+
+    @property
+    def steps(self) -> int:
+        """H, the number of look-ahead steps."""
+        return max(1, round(self.lookahead_s / self.step_s))
+
+    def generator(self) -> MeasurementGenerator:
+        return make_generator(self.method, self.samples, self.mc_rollouts)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class TagBelief:
+    """The planning belief of one tag: N equal-weight particles (resampled by the caller).
+
+    Any object with these attributes will do (:class:`core.rollout.PlanningBelief`).
+    """
+
+    tag_id: str
+    states: FloatArray
+    """(N, 4) [x_east_m, y_north_m, vx_m_s, vy_m_s]."""
+    modes: ModeArray
+    """(N,) int8 motion-model modes (0 for single-mode models)."""
+    motion: MotionModel
+    """The motion model the tag's filter assumes."""
+    existence: float = 1.0
+    """The filter's existence probability (not used by the planner; carried for the log)."""
+
+
+class PlanningVehicle(Protocol):
+    """What the planner reads of the vehicle state."""
+
+    @property
+    def xyz_m(self) -> FloatArray: ...
+    @property
+    def v_xy_m_s(self) -> FloatArray: ...
+    @property
+    def yaw_rad(self) -> float: ...
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleState:
+    """Where the vehicle is now (any object with these attributes will do)."""
+
+    xyz_m: FloatArray
+    """(3,) east, north, up (up = height above the home ground, where the tags are)."""
+    v_xy_m_s: FloatArray
+    """(2,) horizontal velocity east, north."""
+    yaw_rad: float
+    """Compass heading of the airframe (0 = north, clockwise)."""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PlanResult:
+    """An immutable planning decision with everything the log and the UI show."""
+
+    method: str
+    target_ids: tuple[str, ...]
+    headings_deg: FloatArray
+    """(A,) compass headings of the actions."""
+    rewards: FloatArray
+    """(A,) expected discounted reward; -inf for pruned actions."""
+    pruned: BoolArray
+    """(A,) True where the action's path leaves the search area."""
+    chosen: int
+    """Index of the chosen action."""
+    heading_deg: float
+    """headings_deg[chosen]."""
+    all_pruned: bool
+    """Every action was pruned: the chosen heading points (nearest) towards the area centre."""
+    timing_s: Mapping[str, float]
+    """Wall time per stage (predict, measure, update, reward), seconds."""
+    total_s: float
+    """Wall time of the whole call, seconds."""
+    paths_m: FloatArray
+    """(A, H, 2) planned horizontal positions of each action at each look-ahead step."""
+
+    def to_record(self) -> dict[str, Any]:
+        """JSON-ready summary (rewards of pruned actions as null) for the flight log."""
+        return {
+            "method": self.method,
+            "targets": list(self.target_ids),
+            "headings_deg": [float(h) for h in self.headings_deg],
+            "rewards": [float(r) if math.isfinite(r) else None for r in self.rewards],
+            "pruned": [bool(p) for p in self.pruned],
+            "chosen": self.chosen,
+            "heading_deg": self.heading_deg,
+            "all_pruned": self.all_pruned,
+            "timing_s": dict(self.timing_s),
+            "total_s": self.total_s,
+        }
+
+
+class Planner:
+    """Chooses headings for one mission: the settings, radio model and search area, plus a
+    workspace reused between plans (so planning allocates almost nothing per call).
+
+    Not thread-safe: use one Planner per planning thread.
+    """
+
+    def __init__(self, config: PlannerConfig, radio: RadioModel, area: SearchArea) -> None:
+        self.config = config
+        self.radio = radio
+        self.area = area
+        self.generator: MeasurementGenerator = config.generator()
+        self.headings_rad = action_headings_rad(config.n_headings)
+        self._table = detection_table(radio)
+        self._inside = inside_test(area)
+        self._workspace = Workspace()
+
+    def plan(
+        self,
+        beliefs: Sequence[PlanningBelief],
+        vehicle: PlanningVehicle,
+        rng: np.random.Generator,
+    ) -> PlanResult:
+        """Choose the next heading for the given tags: one tag for the "closest" target rule,
+        several for "all" (their rewards are summed). Raises PlannerError on bad input.
+        Cost O(H T A R N) array work (see the module docstring).
+        """
+        t_start = time.perf_counter()
+        cfg = self.config
+        _check_beliefs(beliefs)
+        xyz, v_xy, yaw_rad = _check_vehicle(vehicle)
+        headings = self.headings_rad
+        horizon = cfg.prune_horizon_s if cfg.prune_horizon_s is not None else cfg.lookahead_s
+        times = fine_times_s(max(horizon, cfg.steps * cfg.step_s), cfg.step_s)
+        fine = vehicle_paths(xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2, times)
+        paths = fine[PRUNE_SUBSTEPS - 1 :: PRUNE_SUBSTEPS][: cfg.steps]  # (H, A, 2) at the steps
+        pruned = leaves_area(self._inside, fine[times <= horizon + 1e-9])
+        timing = dict.fromkeys(STAGES, 0.0)
+        rewards = np.full(headings.shape, -np.inf)
+        all_pruned = bool(pruned.all())
+        if all_pruned:
+            to_centre = compass_bearing_rad(xyz, self.area.centre_m)
+            off = np.abs((headings - to_centre + math.pi) % (2.0 * math.pi) - math.pi)
+            chosen = int(np.argmin(off))
+        else:
+            active = np.flatnonzero(~pruned)
+            gains = np.zeros(active.size)
+            for group in _groups_of_equal_size(beliefs):
+                per_tag = rollout_gains(
+                    group, paths[:, active], float(xyz[2]), headings[active], self.radio,
+                    self._table, self.generator, cfg.step_s, cfg.discount, cfg.alpha, rng,
+                    timing, self._workspace,
+                )
+                gains += per_tag.sum(axis=0)
+            if cfg.action_cost_weight > 0.0:
+                course = _course_rad(v_xy, yaw_rad)
+                gains -= cfg.action_cost_weight * turn_cost(headings[active], course)
+            if not np.all(np.isfinite(gains)):
+                raise PlannerError(f"planner produced non-finite rewards {gains.tolist()}")
+            rewards[active] = gains
+            chosen = int(active[np.argmax(gains)])
+        headings_deg = np.degrees(headings)
+        return PlanResult(
+            method=cfg.method,
+            target_ids=tuple(str(b.tag_id) for b in beliefs),
+            headings_deg=_frozen(headings_deg),
+            rewards=_frozen(rewards),
+            pruned=_frozen(pruned),
+            chosen=chosen,
+            heading_deg=float(headings_deg[chosen]),
+            all_pruned=all_pruned,
+            timing_s=MappingProxyType(timing),
+            total_s=time.perf_counter() - t_start,
+            paths_m=_frozen(np.ascontiguousarray(paths.transpose(1, 0, 2))),
+        )
+
+
+def plan(
+    beliefs: Sequence[PlanningBelief],
+    vehicle: PlanningVehicle,
+    area: SearchArea,
+    radio: RadioModel,
+    config: PlannerConfig,
+    rng: np.random.Generator,
+) -> PlanResult:
+    """One-off :meth:`Planner.plan` (allocates a fresh workspace; a mission keeps a Planner)."""
+    return Planner(config, radio, area).plan(beliefs, vehicle, rng)
+
+
+def _check_beliefs(beliefs: Sequence[PlanningBelief]) -> None:
+    if len(beliefs) == 0:
+        raise PlannerError("no tag beliefs to plan for: pass at least one tag's belief")
+    for b in beliefs:
+        s, m = np.asarray(b.states), np.asarray(b.modes)
+        if s.ndim != 2 or s.shape[1] != 4:
+            raise PlannerError(
+                f"tag {b.tag_id}: planning belief states must be (N, 4), got {s.shape}"
+            )
+        if s.shape[0] == 0:
+            raise PlannerError(
+                f"tag {b.tag_id}: planning belief has no particles; resample N >= 1 "
+                "particles from the filter before planning"
+            )
+        if m.shape != (s.shape[0],):
+            raise PlannerError(f"tag {b.tag_id}: modes must be ({s.shape[0]},), got {m.shape}")
+        if not np.all(np.isfinite(s)):
+            raise PlannerError(f"tag {b.tag_id}: planning belief has non-finite states")
+
+
+def _check_vehicle(vehicle: PlanningVehicle) -> tuple[FloatArray, FloatArray, float]:
+    xyz = np.asarray(vehicle.xyz_m, dtype=np.float64).reshape(-1)
+    v_xy = np.asarray(vehicle.v_xy_m_s, dtype=np.float64).reshape(-1)
+    yaw = float(vehicle.yaw_rad)
+    if xyz.shape != (3,) or v_xy.shape != (2,):
+        raise PlannerError(
+            f"vehicle position must be (3,) and velocity (2,), got {xyz.shape}, {v_xy.shape}"
+        )
+    if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(v_xy)) and math.isfinite(yaw)):
+        raise PlannerError("vehicle state is not finite")
+    return xyz, v_xy, yaw
+
+
+def _course_rad(v_xy: FloatArray, yaw_rad: float) -> float:
+    """Compass course over ground, or the yaw when (nearly) hovering."""
+    if math.hypot(v_xy[0], v_xy[1]) >= _COURSE_MIN_SPEED_M_S:
+        return math.atan2(v_xy[0], v_xy[1]) % (2.0 * math.pi)
+    return yaw_rad % (2.0 * math.pi)
+
+
+def _groups_of_equal_size(beliefs: Sequence[PlanningBelief]) -> list[list[PlanningBelief]]:
+    groups: dict[int, list[PlanningBelief]] = {}
+    for b in beliefs:
+        groups.setdefault(int(np.shape(b.states)[0]), []).append(b)
+    return list(groups.values())
+
+
+def _frozen(a: NDArray[Any]) -> NDArray[Any]:
+    a = np.array(a)
+    a.flags.writeable = False
+    return a

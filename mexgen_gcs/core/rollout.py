@@ -1,0 +1,183 @@
+"""The planner's inner loop: roll every action forward over the look-ahead and sum the
+discounted information gain (paper section 4, "Path planning", steps 1-4).
+
+Frame: local ENU metres about home (x east, y north, z up; tags on the ground at z = 0);
+receiver yaw = the action's compass heading (0 = north, clockwise).
+
+Arrays are float32 with shapes (T, A, R, N'): tags x actions x rollouts x particles, where R is
+the generator's number of rollouts (MC-M: M, otherwise 1) and N' is N padded to a multiple of
+16 (the samplers' block size) with zero-weight copies of particle 0, which never influence a
+result. The only Python loops are over look-ahead steps (and tags for the motion model).
+
+Large arrays live in a :class:`Workspace` that a :class:`~mexgen_gcs.core.planner.Planner`
+keeps between plans: on this class of machine a page fault costs ~2 us, and glibc returns
+freed megabyte-sized blocks to the OS, so allocating the grids afresh for every plan would cost
+more than the arithmetic. The noiseless-power grid is evaluated in chunks of at most
+``GRID_CHUNK`` values so that the radio model's temporaries stay small as well.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mexgen_gcs.core.generators import BeliefView, MeasurementGenerator
+from mexgen_gcs.core.likelihood import DetectionTable, bayes_update, log_likelihood
+from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.reward import renyi_gain
+
+FloatArray = NDArray[np.float64]
+Float32Array = NDArray[np.float32]
+
+PAD = 16
+"""The particle axis is padded to a multiple of this."""
+GRID_CHUNK = 1 << 14
+"""Most power-grid values (tags x actions x particles x steps) computed per radio-model call."""
+
+
+class PlanningBelief(Protocol):
+    """What the planner reads of a tag's planning belief (N equal-weight particles)."""
+
+    @property
+    def tag_id(self) -> str: ...
+    @property
+    def states(self) -> FloatArray: ...
+    @property
+    def modes(self) -> ModeArray: ...
+    @property
+    def motion(self) -> MotionModel: ...
+
+
+class Workspace:
+    """Reusable float32 buffers, grown on demand; views are contiguous prefixes.
+
+    Not thread-safe: one workspace per planning thread.
+    """
+
+    def __init__(self) -> None:
+        self._buffers: dict[str, Float32Array] = {}
+
+    def get(self, name: str, shape: tuple[int, ...]) -> Float32Array:
+        size = math.prod(shape)
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < size:
+            buf = np.empty(size, dtype=np.float32)
+            self._buffers[name] = buf
+        return buf[:size].reshape(shape)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(b.nbytes for b in self._buffers.values())
+
+
+def rollout_gains(
+    beliefs: Sequence[PlanningBelief],
+    paths: FloatArray,
+    alt_m: float,
+    headings_rad: FloatArray,
+    radio: RadioModel,
+    table: DetectionTable,
+    generator: MeasurementGenerator,
+    step_s: float,
+    discount: float,
+    alpha: float,
+    rng: np.random.Generator,
+    timing: dict[str, float],
+    workspace: Workspace | None = None,
+) -> FloatArray:
+    """Expected discounted information gain of each action for each tag, (T, A) float64.
+
+    beliefs: T tags with the same particle count N; paths: (H, A, 2) vehicle east/north at
+    the H look-ahead steps; headings_rad: (A,). Adds wall times to ``timing`` (predict,
+    measure, update, reward). Cost O(H T A R N) array work.
+    """
+    ws = workspace if workspace is not None else Workspace()
+    clock = time.perf_counter
+    n_tags, n = len(beliefs), int(beliefs[0].states.shape[0])
+    n_pad = -(-n // PAD) * PAD
+    steps, n_act = paths.shape[0], paths.shape[1]
+    n_roll = generator.rollouts
+
+    # 1. predict: tag motion does not depend on the action, so every step is propagated once
+    #    for all actions and rollouts.
+    t0 = clock()
+    xy = ws.get("xy", (steps, n_tags, 1, 1, n_pad, 2))
+    for i, b in enumerate(beliefs):
+        state, mode = b.states, b.modes
+        for k in range(steps):
+            state, mode = b.motion.propagate(state, mode, step_s, rng)
+            xy[k, i, 0, 0, :n] = state[:, :2]
+    xy[..., n:, :] = xy[..., :1, :]
+    t1 = clock()
+
+    # The noiseless power of every particle from every action's receiver pose, all steps.
+    rx = np.empty((steps, 1, n_act, 1, 3), dtype=np.float32)
+    rx[..., :2] = paths[:, None, :, None, :]
+    rx[..., 2] = alt_m
+    yaw = headings_rad.astype(np.float32)[None, :, None]  # (1, A, 1) against rows (T, A, R)
+    yaw_grid = yaw[..., None]  # (1, A, 1, 1) against particles (T, A, 1, N')
+    power = ws.get("power", (steps, n_tags, n_act, 1, n_pad))
+    log_pd = ws.get("log_pd", power.shape)
+    per_step = n_tags * n_act * n_pad
+    k_chunk = max(1, GRID_CHUNK // per_step)
+    p_chunk = n_pad if per_step <= GRID_CHUNK else max(PAD, GRID_CHUNK // (n_tags * n_act))
+    for k0 in range(0, steps, k_chunk):
+        ks = slice(k0, k0 + k_chunk)
+        for p0 in range(0, n_pad, p_chunk):
+            ps = slice(p0, p0 + p_chunk)
+            power[ks, ..., ps] = radio.power_db(xy[ks, ..., ps, :], rx[ks, ..., None, :], yaw_grid)
+            table.log_pd(power[ks, ..., ps], out=log_pd[ks, ..., ps])
+    t2 = clock()
+    timing["predict"] += t1 - t0
+    timing["update"] += t2 - t1
+
+    shape = (n_tags, n_act, n_roll, n_pad)
+    log_w = ws.get("log_w", shape)  # max-shifted: normalised = log_w - log_total
+    log_w[..., :n] = 0.0
+    log_w[..., n:] = -np.inf
+    log_total: FloatArray | float = math.log(n)
+    w = ws.get("w", shape)  # exp(log_w)
+    w[..., :n] = 1.0
+    w[..., n:] = 0.0
+    log_w_next = ws.get("log_w_next", shape)
+    scratch = ws.get("scratch", shape)
+    value = np.zeros(shape[:-1])
+    measure_s = update_s = reward_s = 0.0
+    for k in range(steps):
+        t2 = clock()
+        rx_k = rx[k]
+        view = BeliefView(
+            weights=w,
+            positions_m=xy[k],
+            power_db=power[k],
+            log_pd=log_pd[k],
+            mean_power=lambda p, rx_k=rx_k: radio.power_db(p, rx_k, yaw),
+            detection_probability=radio.detection_probability,
+            noise_std_db=radio.noise_std_db,
+        )
+        # 2. measure
+        meas = generator.generate(view, rng)
+        t3 = clock()
+        # 3. update: log_w_next <- posterior log-weights, w <- posterior weights
+        log_likelihood(meas.z_db, meas.detected, power[k], log_pd[k], table, radio.noise_var,
+                       out=log_w_next)
+        post = bayes_update(log_w, log_w_next, out_weights=w)
+        t4 = clock()
+        # 4. reward
+        value += discount**k * renyi_gain(log_w_next, log_w, alpha, scratch,
+                                          post.log_total, log_total)
+        log_w, log_w_next, log_total = log_w_next, log_w, post.log_total
+        t5 = clock()
+        measure_s += t3 - t2
+        update_s += t4 - t3
+        reward_s += t5 - t4
+    timing["measure"] += measure_s
+    timing["update"] += update_s
+    timing["reward"] += reward_s
+    return value.mean(axis=2)

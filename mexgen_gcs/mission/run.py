@@ -1,0 +1,365 @@
+"""`mexgen-gcs sitl` and `mexgen-gcs fly`, and the scripted API `run_sitl`.
+
+``run_sitl(mission, seed=..., speedup=..., overrides=...)`` starts ``python -m sim`` as a child
+process on matching loopback ports, flies the mission through the real MAVSDK and UDP radio
+path, stops the simulator and returns a ``MissionResult`` with per-tag errors against the
+simulator's ground truth. ``fly`` is the same without the child process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import copy
+import json
+import logging
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
+from mexgen_gcs.core.mission_core import MissionCore
+from mexgen_gcs.errors import ConfigError, MexgenError
+from mexgen_gcs.io.clock import Clock, ScaledClock, WallClock
+from mexgen_gcs.io.flightlog import FlightLogWriter
+from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
+from mexgen_gcs.io.vehicle import MavsdkVehicle
+from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAVLINK_PORT = 14540
+DEFAULT_RADIO_PORT = 14600
+
+
+@dataclass(frozen=True, slots=True)
+class SitlPorts:
+    mavlink: int = DEFAULT_MAVLINK_PORT
+    radio: int = DEFAULT_RADIO_PORT
+
+    @classmethod
+    def free(cls) -> SitlPorts:
+        """Two free UDP ports on loopback (for tests and parallel batches)."""
+        return cls(_free_udp_port(), _free_udp_port())
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def apply_overrides(mission: Any, overrides: Mapping[str, Any] | None) -> Any:
+    """A new mission with dotted-key overrides applied (``{"planner.method": "pim"}``) and
+    validated by the one schema; errors name the key."""
+    if not overrides:
+        return mission
+    data = copy.deepcopy(dump_resolved(mission))
+    for dotted, value in overrides.items():
+        cursor = data
+        parts = dotted.split(".")
+        for key in parts[:-1]:
+            if not isinstance(cursor, dict) or key not in cursor or cursor[key] is None:
+                if isinstance(cursor, dict):
+                    cursor[key] = {}
+                else:
+                    raise ConfigError(f"override {dotted!r}: {key!r} is not a section")
+            cursor = cursor[key]
+        cursor[parts[-1]] = value
+    text = yaml.safe_dump(data, sort_keys=False)
+    return parse_mission(text, source=f"{mission.source_path or '<mission>'} + overrides")
+
+
+def _make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: int) -> Path:
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
+    d = Path(base) / f"{stamp}-{mission.name}-{method}-s{seed}"
+    n = 1
+    while d.exists():
+        d = Path(base) / f"{stamp}-{mission.name}-{method}-s{seed}-{n}"
+        n += 1
+    d.mkdir(parents=True)
+    return d
+
+
+def build_core(mission: Any, rng: np.random.Generator) -> MissionCore:
+    return MissionCore(
+        mission.tag_ids, mission.filter_motion_model(), mission.radio_model(),
+        mission.search_area(), mission.filter_config(), rng, kind=mission.kind,
+        target_rule=mission.planner.target,
+        follow_tag=mission.follow.tag if mission.follow is not None else None,
+        planning_particles=mission.planner.n_particles)
+
+
+async def fly_mission(
+    mission: Any,
+    *,
+    connect_url: str,
+    radio_url: str,
+    clock: Clock,
+    log_dir: Path,
+    method: str,
+    seed: int,
+    options: ControllerOptions | None = None,
+    truth_path: Path | None = None,
+    ui: bool = False,
+) -> MissionResult:
+    """Fly one mission with real ports. The caller owns any simulator process."""
+    rng = np.random.default_rng(seed)
+    core = build_core(mission, rng.spawn(1)[0])
+    policy = RadioPolicy.from_mission(mission, clock=clock.now)
+    with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method) as flight_log:
+        async with RadioReceiver(radio_url, policy) as receiver:
+            vehicle = MavsdkVehicle()
+            truth = TruthTail(truth_path, mission) if truth_path is not None else None
+            controller = MissionController(
+                mission, vehicle, receiver, clock, core, flight_log, method=method,
+                rng=rng.spawn(1)[0], connect_url=connect_url, options=options,
+                truth=truth.positions if truth is not None else None)
+            loop = asyncio.get_running_loop()
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(signal.SIGINT, controller.request, "abort")
+                loop.add_signal_handler(signal.SIGTERM, controller.request, "abort")
+            try:
+                if ui:
+                    from mexgen_gcs.ui.app import run_with_ui
+
+                    result = await run_with_ui(controller)
+                else:
+                    result = await controller.run()
+            finally:
+                with contextlib.suppress(NotImplementedError, RuntimeError):
+                    loop.remove_signal_handler(signal.SIGINT)
+                    loop.remove_signal_handler(signal.SIGTERM)
+                await vehicle.close()
+            result.log_dir = str(log_dir)
+            flight_log.write("result", t=clock.now(), end_reason=result.end_reason,
+                             exit_code=result.exit_code, localised=result.localised,
+                             rejects=result.rejects, duration_s=result.duration_s)
+    return result
+
+
+class TruthTail:
+    """The simulator's latest tag truth positions (ENU), read from truth.jsonl on demand."""
+
+    def __init__(self, path: Path, mission: Any) -> None:
+        self.path = path
+        self.frame = mission.local_frame()
+        self._pos = 0
+        self._latest: dict[str, tuple[float, float]] = {}
+
+    def positions(self) -> dict[str, tuple[float, float]]:
+        try:
+            with open(self.path, encoding="utf-8") as fh:
+                fh.seek(self._pos)
+                for line in fh:
+                    if not line.endswith("\n"):
+                        break
+                    self._pos += len(line.encode("utf-8"))
+                    self._ingest(line)
+        except OSError:
+            pass
+        return dict(self._latest)
+
+    def _ingest(self, line: str) -> None:
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            return
+        if rec.get("type") == "tag" and "x_m" in rec and "y_m" in rec:
+            self._latest[str(rec["tag"])] = (float(rec["x_m"]), float(rec["y_m"]))
+
+
+def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: SitlPorts,
+                    truth_dir: Path, extra_args: list[str] | None = None,
+                    ready_timeout_s: float = 30.0) -> tuple[subprocess.Popen[str], float]:
+    """Start `python -m sim` and wait for its ready line; returns (process, start_unix)."""
+    cmd = [sys.executable, "-m", "sim", str(mission_path), "--seed", str(seed),
+           "--speedup", str(speedup), "--mavlink", f"127.0.0.1:{ports.mavlink}",
+           "--radio", f"127.0.0.1:{ports.radio}", "--truth-dir", str(truth_dir),
+           *(extra_args or [])]
+    log_file = open(truth_dir / "sim.log", "w", encoding="utf-8")  # noqa: SIM115 - owned by proc
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log_file, text=True,
+                            env={**os.environ, "MAVLINK20": "1"})
+    deadline = time.monotonic() + ready_timeout_s
+    assert proc.stdout is not None
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        if line.startswith("sim ready"):
+            return proc, _sim_start_unix(truth_dir / "truth.jsonl")
+    stop_simulator(proc)
+    raise MexgenError(f"the simulator did not start within {ready_timeout_s:.0f} s; "
+                      f"see {truth_dir / 'sim.log'}")
+
+
+def _sim_start_unix(truth_path: Path) -> float:
+    """The simulator's clock origin from its truth header (sim time = origin + K * wall)."""
+    try:
+        with open(truth_path, encoding="utf-8") as fh:
+            header = json.loads(fh.readline())
+        return float(header["start_unix"])
+    except (OSError, ValueError, KeyError, TypeError):
+        log.warning("no start_unix in %s; assuming the simulator started now", truth_path)
+        return time.time()
+
+
+def stop_simulator(proc: subprocess.Popen[str], wait_s: float = 20.0) -> int | None:
+    """Let the simulator finish on its own (it exits once landed), else SIGTERM, else kill."""
+    try:
+        return proc.wait(timeout=wait_s)
+    except subprocess.TimeoutExpired:
+        proc.terminate()
+    try:
+        return proc.wait(timeout=10.0)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        return proc.wait()
+
+
+def run_sitl(
+    mission: str | os.PathLike[str] | Any,
+    *,
+    seed: int = 1,
+    speedup: float = 1.0,
+    method: str | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    log_dir: str | os.PathLike[str] = "flights",
+    ports: SitlPorts | None = None,
+    sim_args: list[str] | None = None,
+    options: ControllerOptions | None = None,
+    ui: bool = False,
+) -> MissionResult:
+    """Fly a mission against the built-in simulator; the scripted-SITL API.
+
+    ``mission``: a path or a loaded Mission. ``overrides``: dotted keys, e.g.
+    ``{"planner.method": "pim", "sim.seed": 3}``. ``ports``: defaults to the contract ports;
+    ``SitlPorts.free()`` for parallel runs. Raises ConfigError on a bad mission (nothing is
+    started).
+    """
+    m = load_mission(mission) if isinstance(mission, str | os.PathLike) else mission
+    if method is not None:
+        overrides = {**(overrides or {}), "planner.method": method}
+    m = apply_overrides(m, overrides)
+    chosen = m.planner.method
+    out = _make_log_dir(log_dir, m, chosen, seed)
+    resolved = out / "mission.yaml"
+    resolved.write_text(yaml.safe_dump(dump_resolved(m), sort_keys=False), encoding="utf-8")
+    ports = ports or SitlPorts()
+    proc, start_unix = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports,
+                                       truth_dir=out, extra_args=sim_args)
+    clock: Clock = ScaledClock(start_unix, speedup) if speedup != 1.0 else WallClock()
+    try:
+        result = asyncio.run(fly_mission(
+            m, connect_url=f"udpin://127.0.0.1:{ports.mavlink}",
+            radio_url=f"udp://127.0.0.1:{ports.radio}", clock=clock, log_dir=out,
+            method=chosen, seed=seed, options=options, truth_path=out / "truth.jsonl", ui=ui))
+    finally:
+        code = stop_simulator(proc)
+        log.info("simulator exited with %s", code)
+    attach_truth_errors(result, out / "truth.jsonl", m)
+    return result
+
+
+def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -> None:
+    """Add `error_m` per localised tag from the simulator's truth at localisation time."""
+    if not truth_path.exists():
+        return
+    history: dict[str, list[tuple[float, float, float]]] = {}
+    with open(truth_path, encoding="utf-8") as fh:
+        for line in fh:
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if rec.get("type") == "tag":
+                history.setdefault(str(rec["tag"]), []).append(
+                    (float(rec["t"]), float(rec["x_m"]), float(rec["y_m"])))
+    for tid, info in result.localised.items():
+        rows = history.get(tid)
+        if not rows:
+            continue
+        # the truth at the moment the tag was localised
+        t_loc = info["t"]
+        _, e, n = min(rows, key=lambda r: abs(r[0] - t_loc))
+        info["error_m"] = math.hypot(info["east_m"] - e, info["north_m"] - n)
+
+
+def summary_text(result: MissionResult) -> str:
+    lines = [f"mission end: {result.end_reason} (exit {result.exit_code}), "
+             f"{result.duration_s:.0f} s mission time"]
+    for tid, info in sorted(result.localised.items()):
+        err = f", error {info['error_m']:.1f} m" if "error_m" in info else ""
+        lines.append(f"  {tid}: localised after {info['after_s']:.0f} s at "
+                     f"({info['lat']:.6f}, {info['lon']:.6f}) +-{info['radius_m']:.0f} m{err}")
+    if result.rejects:
+        lines.append("  radio rejects: " + ", ".join(f"{k}={v}" for k, v in result.rejects.items()))
+    lines.append(f"  log: {result.log_dir}")
+    return "\n".join(lines)
+
+
+def _setup_logging() -> None:
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+
+
+def cmd_sitl(args: argparse.Namespace) -> int:
+    _setup_logging()
+    try:
+        mission = load_mission(args.mission)
+        overrides = {"sim.seed": args.seed} if getattr(args, "seed", None) is not None else None
+        mission = apply_overrides(mission, overrides)
+    except ConfigError as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
+    ui = not getattr(args, "headless", False) and sys.stdout.isatty()
+    try:
+        result = run_sitl(mission, seed=args.seed if args.seed is not None else 1,
+                          speedup=float(getattr(args, "speedup", 1.0) or 1.0),
+                          method=getattr(args, "method", None),
+                          log_dir=getattr(args, "log_dir", None) or "flights", ui=ui)
+    except ConfigError as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
+    except MexgenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(summary_text(result))
+    return result.exit_code
+
+
+def cmd_fly(args: argparse.Namespace) -> int:
+    _setup_logging()
+    try:
+        mission = load_mission(args.mission)
+        if getattr(args, "method", None):
+            mission = apply_overrides(mission, {"planner.method": args.method})
+    except ConfigError as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
+    seed = args.seed if getattr(args, "seed", None) is not None else int(time.time())
+    out = _make_log_dir(getattr(args, "log_dir", None) or "flights", mission,
+                        mission.planner.method, seed)
+    ui = not getattr(args, "headless", False) and sys.stdout.isatty()
+    radio = getattr(args, "radio", None) or mission.receiver.listen
+    try:
+        result = asyncio.run(fly_mission(
+            mission, connect_url=args.connect, radio_url=radio, clock=WallClock(), log_dir=out,
+            method=mission.planner.method, seed=seed, ui=ui))
+    except MexgenError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    print(summary_text(result))
+    return result.exit_code

@@ -1,0 +1,108 @@
+"""``python -m sim MISSION.yaml [options]``: run the simulator until stopped or landed.
+
+Exit codes: 0 after a clean stop (SIGINT/SIGTERM, or landed and disarmed after flying),
+2 for bad input (mission file or flags), with a message on stderr naming the problem.
+Prints one line ``sim ready mavlink=... radio=... listen=...`` on stdout once it is up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from mexgen_gcs.config import load_mission
+from mexgen_gcs.errors import ConfigError
+from sim.faults import KINDS, parse_fault_flag
+from sim.runner import Simulation
+from sim.scenario import Address, SimOptions
+
+
+def parse_address(text: str) -> Address:
+    """``HOST:PORT`` or ``udp://HOST:PORT`` (IPv4 or a host name)."""
+    rest = text.removeprefix("udp://")
+    host, sep, port = rest.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, e.g. 127.0.0.1:14540; got {text!r}")
+    return host, int(port)
+
+
+def _fault(text: str) -> object:
+    try:
+        return parse_fault_flag(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not 0.0 < value <= 1000.0:
+        raise argparse.ArgumentTypeError(f"expected 0 < value <= 1000, got {value}")
+    return value
+
+
+def _sysid(text: str) -> int:
+    if not text.isdigit() or not 1 <= int(text) <= 255:
+        raise argparse.ArgumentTypeError(f"expected a system id 1..255, got {text!r}")
+    return int(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m sim",
+        description="Simulated PX4 multirotor (MAVLink/UDP) and VHF radio receiver "
+                    "(detection wire format v1/UDP) for a mission file.")
+    p.add_argument("mission", type=Path, help="mission file (YAML)")
+    p.add_argument("--seed", type=int, default=None, help="world seed (default: sim.seed)")
+    p.add_argument("--speedup", type=_positive, default=1.0,
+                   help="sim time runs K times faster than the wall clock (default 1)")
+    p.add_argument("--mavlink", type=parse_address, default=("127.0.0.1", 14540),
+                   metavar="HOST:PORT", help="send MAVLink here (default 127.0.0.1:14540)")
+    p.add_argument("--gcs", type=parse_address, default=None, metavar="HOST:PORT",
+                   help="also send MAVLink here, e.g. a GCS on 127.0.0.1:14550")
+    p.add_argument("--radio", type=parse_address, default=("127.0.0.1", 14600),
+                   metavar="HOST:PORT", help="send detection datagrams here "
+                   "(default 127.0.0.1:14600)")
+    p.add_argument("--listen", type=parse_address, default=("0.0.0.0", 0), metavar="HOST:PORT",
+                   help="bind the MAVLink socket here (default 0.0.0.0:0, any free port)")
+    p.add_argument("--truth-dir", type=Path, default=None,
+                   help="write truth.jsonl into this directory (default: no truth file)")
+    p.add_argument("--sysid", type=_sysid, default=1, help="MAVLink system id (default 1)")
+    p.add_argument("--fault", type=_fault, action="append", default=[], metavar="SPEC",
+                   help="add a fault, KIND,at_s=S[,field=value]; kinds: "
+                        + ", ".join(f"{k}({', '.join(v)})" for k, v in KINDS.items()))
+    p.add_argument("--keep-running", action="store_true",
+                   help="do not exit after landing and disarming")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        mission = load_mission(args.mission)
+    except ConfigError as exc:
+        print(f"sim: {exc}", file=sys.stderr)
+        return 2
+    options = SimOptions(
+        speedup=args.speedup, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
+        radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
+        extra_faults=tuple(args.fault), keep_running=args.keep_running)
+    try:
+        sim = Simulation(mission, options)
+    except (OSError, ValueError) as exc:
+        print(f"sim: cannot start: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return asyncio.run(sim.run())
+    except OSError as exc:  # e.g. the listen address is taken
+        print(f"sim: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
