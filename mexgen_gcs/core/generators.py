@@ -100,8 +100,16 @@ class PredictedIdealMeasurement:
     def generate(self, view: BeliefView, rng: np.random.Generator) -> GeneratedMeasurement:
         """O(B N) for the mean (one matrix product), O(B) for the measurement."""
         w = np.asarray(view.weights)
-        total = w.sum(axis=-1, dtype=np.float64)[..., None]
-        mean_xy = np.matmul(w[..., None, :], view.positions_m)[..., 0, :] / total
+        pos = np.asarray(view.positions_m)
+        n = w.shape[-1]
+        per_tag = pos.ndim == w.ndim + 1 and pos.shape[0] == w.shape[0]
+        if per_tag and math.prod(pos.shape[1:-2]) == 1:
+            # positions shared by every row of a leading (tag) index: one product per tag
+            sums = np.matmul(w.reshape(w.shape[0], -1, n), pos.reshape(pos.shape[0], n, 2))
+            sums = sums.reshape(*w.shape[:-1], 2)
+        else:
+            sums = np.matmul(w[..., None, :], pos)[..., 0, :]
+        mean_xy = sums / w.sum(axis=-1, dtype=np.float32)[..., None]
         z = np.asarray(view.mean_power(mean_xy), dtype=np.float32)
         detected = np.asarray(view.detection_probability(z)) >= DETECTION_THRESHOLD
         return GeneratedMeasurement(z_db=z, detected=detected)

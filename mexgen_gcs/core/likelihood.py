@@ -77,7 +77,7 @@ class DetectionTable:
         object.__setattr__(self, "_log_miss", np.maximum(log_miss, LOG_FLOOR).astype(np.float32))
 
     def _index(self, power_db: NDArray[np.floating]) -> NDArray[np.int32]:
-        f = np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32)
+        f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32))
         f += np.float32(self._offset)
         np.maximum(f, np.float32(0.0), out=f)
         np.minimum(f, np.float32(self._log_pd.size - 1), out=f)

@@ -88,7 +88,7 @@ def inside_test(area: SearchArea) -> Callable[[FloatArray], NDArray[np.bool_]]:
     edges = np.roll(v, -1, axis=0) - v
     # Outward normals for a counter-clockwise polygon; flip for clockwise.
     normals = np.stack([edges[:, 1], -edges[:, 0]], axis=-1)
-    signed_area = 0.5 * float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+    signed_area = float(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
     if signed_area < 0.0:
         normals = -normals
     offsets = np.sum(normals * v, axis=-1)

@@ -37,8 +37,9 @@ Float32Array = NDArray[np.float32]
 
 PAD = 16
 """The particle axis is padded to a multiple of this."""
-GRID_CHUNK = 1 << 14
-"""Most power-grid values (tags x actions x particles x steps) computed per radio-model call."""
+GRID_CHUNK = 28 * 1024
+"""Most power-grid values (tags x actions x particles x steps) per radio-model call: the
+model's float32 temporaries then stay below glibc's 128 KiB mmap threshold."""
 
 
 class PlanningBelief(Protocol):

@@ -7,14 +7,16 @@ protocol.
 
 from __future__ import annotations
 
+import itertools
 import math
+import signal
 import time
 from typing import Any
 
 import pytest
 from mav_helpers import command, start, wait_for
 from pymavlink import mavutil
-from sim_helpers import SimFactory
+from sim_helpers import SimFactory, udp_socket
 
 from mexgen_gcs.core.geo import LocalFrame
 from sim.truth import read_truth
@@ -139,3 +141,32 @@ def test_telemetry_rate_can_be_changed(sim_factory: SimFactory, client: Any) -> 
     assert rate_hz > 8.0  # 20 Hz asked, 1 Hz by default
     battery = wait_for(client, "BATTERY_STATUS")
     assert battery.battery_remaining == 100 and math.isclose(battery.voltages[0] / 1000, 16.8)
+
+
+def test_link_drop_on_the_wall_clock_and_the_gcs_port(sim_factory: SimFactory, client: Any
+                                                      ) -> None:
+    gcs = udp_socket(timeout_s=2.0)
+    start(sim_factory, client, speedup=10.0, extra=[
+        "--fault", "link_drop,at_s=10,duration_s=1.5",
+        "--gcs", f"127.0.0.1:{gcs.getsockname()[1]}"])
+    parser = M.MAVLink(None)
+    first = parser.parse_buffer(gcs.recvfrom(4096)[0])
+    assert first and first[0].get_srcSystem() == 1
+    gcs.close()
+    arrivals = []
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline:
+        if client.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is not None:
+            arrivals.append(time.monotonic())
+    gaps = [b - a for a, b in itertools.pairwise(arrivals)]
+    # Sim time 10 s at 10x is ~1 s of wall; the drop lasts 1.5 s of wall, not 0.15 s.
+    assert 1.3 < max(gaps) < 2.5
+    assert gaps.index(max(gaps)) < len(gaps) - 2  # and the heartbeats came back
+
+
+def test_sigint_stops_cleanly(sim_factory: SimFactory, client: Any) -> None:
+    sim = start(sim_factory, client)
+    sim.proc.send_signal(signal.SIGINT)
+    assert sim.wait_exit(10.0) == 0
+    end = read_truth(sim.truth_path)[-1]
+    assert end["type"] == "end" and end["reason"] == "signal"

@@ -1,0 +1,134 @@
+"""End-to-end: real `python -m sim` child process, real MAVSDK over UDP loopback, real radio
+datagrams, real flight logs. Each flight runs at --speedup to keep CI time reasonable."""
+
+from __future__ import annotations
+
+import json
+import random
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from mexgen_gcs.io.flightlog import read_flight_log
+from mexgen_gcs.mission.run import SitlPorts, run_sitl
+
+pytestmark = pytest.mark.e2e
+
+MISSIONS = Path(__file__).parents[2] / "missions"
+SPEEDUP = 10.0
+
+
+def _events(log_dir: str) -> list[dict]:
+    return [r for r in read_flight_log(log_dir).records if r["type"] in ("event", "error")]
+
+
+def _kinds(log_dir: str) -> list[str]:
+    return [r.get("kind", "") for r in _events(log_dir)]
+
+
+def test_demo_mission_completes_under_hostile_datagrams(tmp_path):
+    """All four tags localised within 40 m of the truth, landed and disarmed, exit 0, while
+    garbage is sprayed at the radio port: only the reject counters change."""
+    ports = SitlPorts.free()
+    stop = threading.Event()
+    sent: dict[str, int] = {}
+
+    def spray() -> None:
+        rnd = random.Random(0)
+        payloads = {
+            "bad_json": b'{"v": 1, "type": "detection", "t": ',
+            "oversized": b'{"v":1,"type":"detection","pad":"' + b"x" * 3000 + b'"}',
+            "rssi_nan": b'{"v": 1, "type": "detection", "t": 1.0, "tag": "T1", "rssi_db": NaN}',
+            "not_utf8": b"\xff\xfe\xfd",
+            "unknown_tag": None,  # needs a fresh timestamp, built below
+        }
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            while not stop.is_set():
+                reason = rnd.choice(list(payloads))
+                data = payloads[reason] or json.dumps(
+                    {"v": 1, "type": "detection", "t": time.time(), "tag": "ZZ",
+                     "rssi_db": -40.0}).encode()
+                s.sendto(data, ("127.0.0.1", ports.radio))
+                sent[reason] = sent.get(reason, 0) + 1
+                time.sleep(0.02)
+
+    sprayer = threading.Thread(target=spray, daemon=True)
+    sprayer.start()
+    try:
+        result = run_sitl(MISSIONS / "demo.yaml", seed=3, speedup=SPEEDUP, ports=ports,
+                          log_dir=tmp_path)
+    finally:
+        stop.set()
+        sprayer.join()
+    assert result.exit_code == 0, (result.end_reason, result.events[-10:])
+    assert result.end_reason == "all_localised"
+    assert set(result.localised) == {"T1", "T2", "T3", "T4"}
+    for tid, info in result.localised.items():
+        assert info["error_m"] < 40.0, (tid, info)
+    assert sum(sent.values()) > 50
+    # every hostile datagram landed in a reject counter; none was taken as a detection
+    for reason in ("bad_json", "rssi_nan", "not_utf8", "unknown_tag"):
+        assert result.rejects.get(reason, 0) >= 1, (reason, result.rejects)
+    log = read_flight_log(result.log_dir)
+    assert {r["tag"] for r in log.of_type("detection")} <= {"T1", "T2", "T3", "T4"}
+    kinds = _kinds(result.log_dir)
+    assert "landed_and_disarmed" in kinds and kinds.count("tag_localised") == 4
+    assert log.of_type("plan") and log.of_type("setpoint") and log.of_type("estimate")
+    assert (Path(result.log_dir) / "truth.jsonl").exists()
+
+
+def test_moving_tag_is_followed(tmp_path):
+    """A CV tag followed for two minutes: the estimate stays near the truth."""
+    result = run_sitl(MISSIONS / "follow_cv.yaml", seed=2, speedup=SPEEDUP,
+                      ports=SitlPorts.free(), log_dir=tmp_path,
+                      overrides={"follow.duration_s": 150.0})
+    assert result.end_reason == "follow_complete", result.events[-10:]
+    assert result.exit_code == 0
+    log = read_flight_log(result.log_dir)
+    est = [r for r in log.of_type("estimate") if r["update"] == "detection"]
+    assert len(est) > 60
+
+
+@pytest.mark.parametrize(("fault", "overrides", "expect"), [
+    ("link_drop", {"sim.faults": [{"kind": "link_drop", "at_s": 40.0, "duration_s": 6.0}],
+                   "safety.max_mission_time_s": 120.0},
+     {"safety", "offboard_resumed"}),
+    ("radio_silence", {"sim.faults": [{"kind": "radio_silence", "at_s": 30.0,
+                                       "duration_s": 600.0}],
+                       "safety.radio_loss_timeout_s": 15.0},
+     {"safety", "mission_end", "landed_and_disarmed"}),
+    ("battery_sag", {"sim.faults": [{"kind": "battery_sag", "at_s": 30.0, "percent": 70.0}]},
+     {"mission_end", "landed_and_disarmed"}),
+])
+def test_faults_lead_to_safe_logged_actions(tmp_path, fault, overrides, expect):
+    result = run_sitl(MISSIONS / "demo.yaml", seed=4, speedup=SPEEDUP, ports=SitlPorts.free(),
+                      log_dir=tmp_path, overrides=overrides)
+    kinds = set(_kinds(result.log_dir))
+    assert expect <= kinds, (fault, sorted(kinds))
+    reasons = {e.get("reason") for e in _events(result.log_dir)}
+    if fault == "link_drop":
+        assert "link_lost" in reasons
+        assert result.end_reason == "max_mission_time" or result.end_reason == "all_localised"
+    elif fault == "radio_silence":
+        assert "radio_silent" in reasons and result.end_reason == "radio_lost"
+        assert result.exit_code == 1
+    else:
+        assert result.end_reason == "battery_low" and result.exit_code == 1
+    assert "landed_and_disarmed" in kinds
+
+
+def test_bad_mission_exits_2_before_anything_moves(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    text = (MISSIONS / "demo.yaml").read_text().replace("kind: localise", "kind: localize")
+    bad.write_text(text)
+    proc = subprocess.run([sys.executable, "-m", "mexgen_gcs", "sitl", str(bad), "--headless",
+                           "--log-dir", str(tmp_path / "flights")],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "bad.yaml" in proc.stderr and "kind" in proc.stderr
+    assert not (tmp_path / "flights").exists()  # no log, no simulator, no motors
