@@ -56,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_flight_options(p)
     p.add_argument("--speedup", type=_positive_float, default=1.0, metavar="K",
                    help="simulated time runs K times faster than wall time (default: 1)")
+    p.add_argument("--mavlink-port", type=_nonnegative_int, default=14540, metavar="PORT",
+                   help="UDP port for MAVLink on loopback (default 14540; 0 = any free port)")
+    p.add_argument("--radio-port", type=_nonnegative_int, default=14600, metavar="PORT",
+                   help="UDP port for radio datagrams on loopback (default 14600; 0 = any free)")
 
     p = sub.add_parser("fly", help="fly a real vehicle (or any simulator) through MAVSDK")
     p.add_argument("mission", metavar="MISSION.yaml")

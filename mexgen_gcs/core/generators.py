@@ -142,17 +142,17 @@ class MexGen:
         batch, m = w.shape[:-1], self.samples
         power = np.broadcast_to(view.power_db, w.shape)
         if self.stratified:
-            w = w * (1.0 / w.sum(axis=-1, dtype=np.float32))[..., None]
+            w_total = w.sum(axis=-1, dtype=np.float32)
             mass = np.exp(view.log_pd, dtype=np.float32)
             mass = np.multiply(mass, w, dtype=np.float32)
-            counts = stratified_counts(mass, m, rng, dtype=np.float32)
+            counts = stratified_counts(mass, m, rng, dtype=np.float32, total=w_total)
             n_hit = counts.sum(axis=-1)
-            total = np.einsum("...n,...n->...", counts, power)
-            fallback = np.einsum("...n,...n->...", w, power)
+            total = np.vecdot(counts, power)
+            fallback = np.vecdot(w, power) / w_total
         else:
             idx = iid_indices(w, m, rng)  # (B..., M)
-            sampled = take_rows(view.power_db, idx)
-            pd = np.exp(take_rows(view.log_pd, idx))
+            sampled, log_pd = take_rows((view.power_db, view.log_pd), idx)
+            pd = np.exp(log_pd)
             hit = rng.random(idx.shape, dtype=np.float32) < pd
             n_hit = np.count_nonzero(hit, axis=-1)
             total = np.where(hit, sampled, 0.0).sum(axis=-1, dtype=np.float64)
@@ -180,22 +180,24 @@ class MonteCarlo:
         """O(B N) for the block sums, O(B) for the draws."""
         w = np.asarray(view.weights)
         idx = iid_indices(w, 1, rng)  # (B..., 1)
-        power = take_rows(view.power_db, idx)[..., 0]
-        log_pd = take_rows(view.log_pd, idx)[..., 0]
+        power, log_pd = (g[..., 0] for g in take_rows((view.power_db, view.log_pd), idx))
         detected = rng.random(power.shape, dtype=np.float32) < np.exp(log_pd)
         noise = rng.standard_normal(power.shape) * view.noise_std_db
         return GeneratedMeasurement(z_db=(power + noise).astype(np.float32), detected=detected)
 
 
-def take_rows(grid: FloatArray, idx: IntArray) -> FloatArray:
-    """grid[row, idx] for each row: grid (B'..., N) broadcasting to the rows B of idx (B..., k).
-
-    Plain fancy indexing on the un-broadcast grid (no copy of a broadcast view). O(B k).
+def take_rows(
+    grids: tuple[FloatArray, ...], idx: IntArray
+) -> tuple[FloatArray, ...]:
+    """``grid[row, idx]`` for each grid and each row: grids (B'..., N) of one shape broadcasting
+    to the rows B of idx (B..., k); returns arrays (B..., k). Indexes the un-broadcast grids
+    directly (no copy of a broadcast view). O(B k).
     """
-    g = np.asarray(grid)
-    owner = np.arange(math.prod(g.shape[:-1])).reshape(g.shape[:-1])
-    owner = np.broadcast_to(owner, idx.shape[:-1])[..., None]
-    return g.reshape(-1, g.shape[-1])[owner, idx]
+    shape = np.shape(grids[0])
+    n = shape[-1]
+    owner = np.arange(math.prod(shape[:-1])).reshape(shape[:-1])
+    flat = np.broadcast_to(owner, idx.shape[:-1])[..., None] * n + idx
+    return tuple(np.asarray(g).reshape(-1)[flat] for g in grids)
 
 
 def make_generator(

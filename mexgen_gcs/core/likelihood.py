@@ -136,10 +136,9 @@ def log_likelihood(
     out_shape = (*batch, power_db.shape[-1])
     if out is None:
         out = np.empty(out_shape, dtype=np.float32)
-    log_miss = None if det.all() else table.log_miss(power_db)
-    if not det.any():
-        assert log_miss is not None
-        np.copyto(out, log_miss)
+    missed = None if det.all() else np.nonzero(~det)
+    if missed is not None and missed[0].size == det.size:
+        np.copyto(out, table.log_miss(power_db))
         return out
     k = np.float32(0.5 / noise_var_db2)
     zc = z[..., None]
@@ -157,9 +156,8 @@ def log_likelihood(
         np.square(out, out=out)
         out *= -k
         out += log_pd
-    if log_miss is not None:
-        missed = np.nonzero(~det)
-        out[missed] = np.broadcast_to(log_miss, out_shape)[missed]
+    if missed is not None:  # only the missed rows' powers go through the table
+        out[missed] = table.log_miss(np.broadcast_to(power_db, out_shape)[missed])
     return out
 
 

@@ -117,6 +117,29 @@ async def wait_until(
         raise VehicleError(what, f"timeout after {timeout_s:.0f} s") from None
 
 
+_mavsdk_log_routed = False
+
+
+def route_mavsdk_log() -> None:
+    """Send MAVSDK's native log lines to the `mavsdk` Python logger instead of stdout, where
+    they would scribble over the terminal UI and the progress lines. Once per process."""
+    global _mavsdk_log_routed
+    if _mavsdk_log_routed:
+        return
+    from mavsdk.logging import LogLevel, log_subscribe
+
+    mav_log = logging.getLogger("mavsdk")
+    levels = {LogLevel.DEBUG: logging.DEBUG, LogLevel.INFO: logging.INFO,
+              LogLevel.WARN: logging.WARNING, LogLevel.ERROR: logging.ERROR}
+
+    def handler(level: LogLevel, message: str, _file: str | None, _line: int) -> bool:
+        mav_log.log(levels.get(level, logging.INFO), "%s", message)
+        return True
+
+    log_subscribe(handler)
+    _mavsdk_log_routed = True
+
+
 class MavsdkVehicle:
     """`Vehicle` through MAVSDK's native asyncio binding. Plugins live as long as this object."""
 
@@ -137,6 +160,7 @@ class MavsdkVehicle:
         from mavsdk.asyncio.plugins.offboard import OffboardAsync
         from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
+        route_mavsdk_log()
         config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
         self._mavsdk = Mavsdk(config)
         try:

@@ -133,9 +133,8 @@ async def fly_mission(
                 loop.add_signal_handler(signal.SIGINT, controller.request, "abort")
                 loop.add_signal_handler(signal.SIGTERM, controller.request, "abort")
             try:
-                if ui:
-                    from mexgen_gcs.ui.app import run_with_ui
-
+                run_with_ui = _ui_runner() if ui else None
+                if run_with_ui is not None:
                     result = await run_with_ui(controller)
                 else:
                     result = await controller.run()
@@ -149,6 +148,16 @@ async def fly_mission(
                              exit_code=result.exit_code, localised=result.localised,
                              rejects=result.rejects, duration_s=result.duration_s)
     return result
+
+
+def _ui_runner() -> Any:
+    """The terminal UI's entry point, or None (with a note) when it cannot be loaded."""
+    try:
+        from mexgen_gcs.ui.app import run_with_ui
+    except ImportError as exc:
+        print(f"terminal UI unavailable ({exc}); flying headless", file=sys.stderr)
+        return None
+    return run_with_ui
 
 
 class TruthTail:
@@ -325,8 +334,10 @@ def cmd_sitl(args: argparse.Namespace) -> int:
         print(str(exc), file=sys.stderr)
         return 2
     ui = not getattr(args, "headless", False) and sys.stdout.isatty()
+    ports = SitlPorts(getattr(args, "mavlink_port", DEFAULT_MAVLINK_PORT) or _free_udp_port(),
+                      getattr(args, "radio_port", DEFAULT_RADIO_PORT) or _free_udp_port())
     try:
-        result = run_sitl(mission, seed=args.seed if args.seed is not None else 1,
+        result = run_sitl(mission, seed=args.seed if args.seed is not None else 1, ports=ports,
                           speedup=float(getattr(args, "speedup", 1.0) or 1.0),
                           method=getattr(args, "method", None),
                           log_dir=getattr(args, "log_dir", None) or "flights", ui=ui)
