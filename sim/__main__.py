@@ -41,8 +41,8 @@ def _positive(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not 0.0 < value <= 1000.0:
-        raise argparse.ArgumentTypeError(f"expected 0 < value <= 1000, got {value}")
+    if not 0.0 < value <= 200.0:
+        raise argparse.ArgumentTypeError(f"expected 0 < value <= 200, got {value}")
     return value
 
 
@@ -60,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("mission", type=Path, help="mission file (YAML)")
     p.add_argument("--seed", type=int, default=None, help="world seed (default: sim.seed)")
     p.add_argument("--speedup", type=_positive, default=1.0,
-                   help="sim time runs K times faster than the wall clock (default 1)")
+                   help="sim time runs K times faster than the wall clock, 0 < K <= 200 "
+                        "(default 1; up to 50 is reliable with MAVSDK, see sim/README.md)")
     p.add_argument("--mavlink", type=parse_address, default=("127.0.0.1", 14540),
                    metavar="HOST:PORT", help="send MAVLink here (default 127.0.0.1:14540)")
     p.add_argument("--gcs", type=parse_address, default=None, metavar="HOST:PORT",

@@ -26,7 +26,7 @@ import numpy as np
 
 from mexgen_gcs.core.motion import MotionModel
 from mexgen_gcs.core.radio import RadioModel
-from mexgen_gcs.io.wire import encode_detection, encode_heartbeat
+from mexgen_gcs.io.wire import RSSI_RANGE_DB, encode_detection, encode_heartbeat
 from sim.faults import FaultSchedule
 from sim.truth import TruthWriter
 
@@ -198,6 +198,8 @@ class RadioSim:
 
     @staticmethod
     def _datagram(tag: TagTruth, t_sent: float, rssi: float, pose: ReceiverPose) -> bytes:
+        # A real receiver saturates: keep extreme model settings inside the wire format's range.
+        rssi = min(max(rssi, RSSI_RANGE_DB[0]), RSSI_RANGE_DB[1])
         if pose.lat_deg is None or pose.lon_deg is None:
             return encode_detection(t_sent, rssi, tag=tag.id, freq_hz=tag.freq_hz)
         return encode_detection(t_sent, rssi, tag=tag.id, freq_hz=tag.freq_hz,

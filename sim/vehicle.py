@@ -108,6 +108,7 @@ class MavlinkVehicle:
         self._last_error_wall_s = -math.inf
         self._last_mode = autopilot.mode
         self._last_armed = autopilot.armed
+        self._last_landed = autopilot.landed_state
         self._log_events: list[Event] = []
         self._last_unsupported_s = -math.inf
 
@@ -203,8 +204,12 @@ class MavlinkVehicle:
             self._last_mode, self._last_armed = self.ap.mode, self.ap.armed
             if not self.link_down:
                 self.send(self.telemetry.heartbeat())
-                self.send(self.telemetry.extended_sys_state())
             self._next_due[mavlink.MAVLINK_MSG_ID_HEARTBEAT] = self.clock.wall_s() + 1.0
+        if self.ap.landed_state != self._last_landed:
+            # MAVSDK's in_air/landed_state come from this (1 Hz): send changes at once.
+            self._last_landed = self.ap.landed_state
+            if not self.link_down:
+                self.send(self.telemetry.extended_sys_state())
 
     def take_events(self) -> list[Event]:
         """Autopilot events announced since the last call (for the truth log)."""

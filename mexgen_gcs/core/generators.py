@@ -34,6 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.particle_sampling import iid_indices, stratified_counts
+from mexgen_gcs.core.workspace import Workspace
 
 FloatArray = NDArray[np.floating]
 IntArray = NDArray[np.intp]
@@ -68,6 +69,8 @@ class BeliefView:
     """pD of noiseless measurements, elementwise."""
     noise_std_db: float
     """Standard deviation of the measurement noise (sqrt R)."""
+    scratch: Workspace | None = None
+    """Buffers a generator may use for its temporaries (the planner's workspace)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -143,9 +146,12 @@ class MexGen:
         power = np.broadcast_to(view.power_db, w.shape)
         if self.stratified:
             w_total = w.sum(axis=-1, dtype=np.float32)
-            mass = np.exp(view.log_pd, dtype=np.float32)
-            mass = np.multiply(mass, w, dtype=np.float32)
-            counts = stratified_counts(mass, m, rng, dtype=np.float32, total=w_total)
+            ws = view.scratch
+            mass = None if ws is None else ws.get("mexgen_mass", w.shape)
+            mass = np.exp(np.broadcast_to(view.log_pd, w.shape), dtype=np.float32, out=mass)
+            mass *= w
+            counts = stratified_counts(mass, m, rng, dtype=np.float32, total=w_total,
+                                       scratch=ws)
             n_hit = counts.sum(axis=-1)
             total = np.vecdot(counts, power)
             fallback = np.vecdot(w, power) / w_total

@@ -35,6 +35,7 @@ from scipy.special import log_ndtr
 from mexgen_gcs.core.radio import RadioModel
 
 Float32Array = NDArray[np.float32]
+Int32Array = NDArray[np.int32]
 BoolArray = NDArray[np.bool_]
 
 _TABLE_HALF_WIDTH = 40.0
@@ -76,24 +77,38 @@ class DetectionTable:
         object.__setattr__(self, "_log_pd", np.maximum(log_pd, LOG_FLOOR).astype(np.float32))
         object.__setattr__(self, "_log_miss", np.maximum(log_miss, LOG_FLOOR).astype(np.float32))
 
-    def _index(self, power_db: NDArray[np.floating]) -> NDArray[np.int32]:
-        f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32))
+    def _index(
+        self, power_db: NDArray[np.floating], scratch: tuple[Float32Array, Int32Array] | None
+    ) -> NDArray[np.int32]:
+        f = None if scratch is None else scratch[0]
+        f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
         f += np.float32(self._offset)
         np.maximum(f, np.float32(0.0), out=f)
         np.minimum(f, np.float32(self._log_pd.size - 1), out=f)
-        return f.astype(np.int32)
+        if scratch is None:
+            return f.astype(np.int32)
+        i = scratch[1]
+        np.copyto(i, f, casting="unsafe")  # truncation = floor for f >= 0
+        return i
 
     def log_pd(
-        self, power_db: NDArray[np.floating], out: Float32Array | None = None
+        self,
+        power_db: NDArray[np.floating],
+        out: Float32Array | None = None,
+        scratch: tuple[Float32Array, Int32Array] | None = None,
     ) -> Float32Array:
-        """log pD(P) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given."""
-        return self._log_pd.take(self._index(power_db), out=out)
+        """log pD(P) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given.
+        ``scratch``: float32 and int32 buffers shaped like the input (nothing is allocated)."""
+        return self._log_pd.take(self._index(power_db, scratch), out=out, mode="clip")
 
     def log_miss(
-        self, power_db: NDArray[np.floating], out: Float32Array | None = None
+        self,
+        power_db: NDArray[np.floating],
+        out: Float32Array | None = None,
+        scratch: tuple[Float32Array, Int32Array] | None = None,
     ) -> Float32Array:
         """log(1 - pD(P)) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given."""
-        return self._log_miss.take(self._index(power_db), out=out)
+        return self._log_miss.take(self._index(power_db, scratch), out=out, mode="clip")
 
     def pd(self, power_db: NDArray[np.floating]) -> Float32Array:
         """pD(P) in [0, pd_max]; (...) -> (...) float32."""
@@ -108,6 +123,26 @@ def detection_table(radio: RadioModel) -> DetectionTable:
     return DetectionTable(radio)
 
 
+def likelihood_coefficients(
+    power_db: Float32Array, log_pd: Float32Array, noise_var_db2: float,
+    out: Float32Array | None = None,
+) -> Float32Array:
+    """[2kP, log pD(P) - kP^2] with k = 1 / (2R): (..., N) grids -> (..., 2, N) float32.
+
+    For a detection z, ``z * c[0] + c[1] = log pD(P) - (z - P)^2 / (2R) + k z^2``: the
+    log-likelihood up to a per-row constant, linear in z.
+    """
+    k = np.float32(0.5 / noise_var_db2)
+    if out is None:
+        out = np.empty((*np.shape(power_db)[:-1], 2, np.shape(power_db)[-1]), dtype=np.float32)
+    c1, c0 = out[..., 0, :], out[..., 1, :]
+    np.multiply(power_db, 2.0 * k, out=c1)
+    np.multiply(power_db, -k, out=c0)
+    c0 *= power_db
+    c0 += log_pd
+    return out
+
+
 def log_likelihood(
     z_db: NDArray[np.floating],
     detected: BoolArray,
@@ -116,6 +151,7 @@ def log_likelihood(
     table: DetectionTable,
     noise_var_db2: float,
     out: Float32Array | None = None,
+    coef: Float32Array | None = None,
 ) -> Float32Array:
     """Log-likelihood of generated measurements for every particle, up to a constant per row.
 
@@ -125,10 +161,14 @@ def log_likelihood(
     Returns (B..., N) float32 (written into ``out`` if given)::
 
         detected:  log pD(P) - (z - P)^2 / (2 R)   [+ a per-row constant, dropped]
-        missed:    log(1 - pD(P))                   (looked up only if some row is missed)
+        missed:    log(1 - pD(P))                   (looked up only for missed rows)
 
-    The dropped constant (-log sqrt(2 pi R), and -z^2/2R on the broadcast path) cancels when
-    the weights are normalised and in the Renyi divergence. Cost O(B N), ~3-5 passes.
+    The dropped constant (-log sqrt(2 pi R), and -z^2/2R on the shared-grid path) cancels when
+    the weights are normalised and in the Renyi divergence. When the grid is shared along the
+    last batch axis (B' = (..., 1), the planner's case) the detection rows are one small matrix
+    product ``[z, 1] @ coef`` per leading index, with ``coef`` (B'[:-1]..., 2, N) from
+    :func:`likelihood_coefficients` (computed here unless given); otherwise four passes.
+    Cost O(B N).
     """
     z = np.asarray(z_db, dtype=np.float32)
     det = np.asarray(detected, dtype=bool)
@@ -140,21 +180,18 @@ def log_likelihood(
     if missed is not None and missed[0].size == det.size:
         np.copyto(out, table.log_miss(power_db))
         return out
-    k = np.float32(0.5 / noise_var_db2)
-    zc = z[..., None]
-    if math.prod(batch) > math.prod(power_db.shape[:-1]):
-        # Broadcast path (MC rollouts): -k (z - P)^2 = 2kzP - kP^2 - kz^2, and the last term is
-        # a per-row constant: two passes over the large array instead of four.
-        c1 = power_db * (2.0 * k)
-        c0 = power_db * power_db
-        c0 *= -k
-        c0 += log_pd
-        np.multiply(c1, zc, out=out)
-        out += c0
+    if power_db.ndim == z.ndim + 1 and power_db.shape[-2] == 1:
+        if coef is None:
+            lp = np.broadcast_to(log_pd, power_db.shape)[..., 0, :]
+            coef = likelihood_coefficients(power_db[..., 0, :], lp, noise_var_db2)
+        zz = np.empty((*batch, 2), dtype=np.float32)
+        zz[..., 0] = z
+        zz[..., 1] = 1.0
+        np.matmul(zz, coef, out=out)
     else:
-        np.subtract(power_db, zc, out=out)
+        np.subtract(power_db, z[..., None], out=out)
         np.square(out, out=out)
-        out *= -k
+        out *= np.float32(-0.5 / noise_var_db2)
         out += log_pd
     if missed is not None:  # only the missed rows' powers go through the table
         out[missed] = table.log_miss(np.broadcast_to(power_db, out_shape)[missed])
@@ -187,9 +224,8 @@ def bayes_update(
     a = log_lik
     a += log_w
     m = a.max(axis=-1, keepdims=True)
-    bad = ~np.isfinite(m)
-    if bad.any():
-        rows = np.nonzero(bad[..., 0])
+    if not np.isfinite(m.sum()):  # some row's likelihood is -inf or NaN everywhere
+        rows = np.nonzero(~np.isfinite(m[..., 0]))
         a[rows] = np.broadcast_to(log_w, a.shape)[rows]
         m = a.max(axis=-1, keepdims=True)
     a -= m

@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from mexgen_gcs.core.workspace import Workspace
 
 FloatArray = NDArray[np.floating]
 IntArray = NDArray[np.intp]
@@ -62,12 +65,13 @@ def _blocks(w: NDArray[np.float32]) -> NDArray[np.float32]:
     return w.reshape(rows, nb, _BLOCK)
 
 
-def _cdf32(w: NDArray[np.float32]) -> NDArray[np.float32]:
+def _cdf32(w: NDArray[np.float32], scratch: Workspace | None = None) -> NDArray[np.float32]:
     """Un-normalised cumulative sums of (rows, N) float32 weights, (rows, N) float32."""
     rows, n = w.shape
     blocks = _blocks(w)
     nb = blocks.shape[1]
-    cdf = np.matmul(blocks.reshape(rows * nb, _BLOCK), _UPPER).reshape(rows, nb, _BLOCK)
+    out = None if scratch is None else scratch.get("sampling_cdf", (rows * nb, _BLOCK))
+    cdf = np.matmul(blocks.reshape(rows * nb, _BLOCK), _UPPER, out=out).reshape(rows, nb, _BLOCK)
     starts = np.zeros((rows, nb), dtype=np.float32)
     np.cumsum(cdf[:, :-1, -1], axis=-1, out=starts[:, 1:])
     cdf += starts[:, :, None]
@@ -90,6 +94,7 @@ def stratified_counts(
     rng: np.random.Generator,
     dtype: type[np.number] = np.int64,
     total: FloatArray | None = None,
+    scratch: Workspace | None = None,
 ) -> NDArray[np.number]:
     """Stratified draws over each row's particles plus an implicit "none" outcome: counts.
 
@@ -99,14 +104,15 @@ def stratified_counts(
     value x is ``k + [U_k < x n - k]`` with ``k = floor(x n)``, so particle i gets
     ``below(cdf_i) - below(cdf_(i-1))`` draws without any search. Returns (B..., N) counts as
     ``dtype`` (float32 is exact and saves a conversion for a following dot product); row sums
-    <= n_draws. O(N + n) per row.
+    <= n_draws. O(N + n) per row. ``scratch``: a workspace for the (rows, N) temporaries (the
+    result then lives in it too, valid until its next use).
     """
     if n_draws < 1:
         raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
     batch, rows, n, m = _rows(mass)
     scale = np.full(rows, np.float32(n_draws)) if total is None else (
         np.float32(n_draws) / np.asarray(total, dtype=np.float32).reshape(rows))
-    counts = _counts_below(_cdf32(m), scale, n_draws, rng)
+    counts = _counts_below(_cdf32(m, scratch), scale, n_draws, rng, scratch)
     return counts.reshape(*batch, n).astype(dtype, copy=False)
 
 
@@ -129,20 +135,35 @@ def stratified_indices(weights: FloatArray, n_draws: int, rng: np.random.Generat
 
 
 def _counts_below(
-    cdf: NDArray[np.float32], scale: NDArray[np.float32], n_draws: int, rng: np.random.Generator
+    cdf: NDArray[np.float32],
+    scale: NDArray[np.float32],
+    n_draws: int,
+    rng: np.random.Generator,
+    scratch: Workspace | None = None,
 ) -> NDArray[np.float32]:
     """Per-particle stratified draw counts (float32) from (rows, N) CDFs; ``cdf * scale`` is in
     strata units (at most n_draws, up to rounding)."""
-    rows = cdf.shape[0]
-    y = np.multiply(cdf, scale[:, None], dtype=np.float32)
-    k = np.minimum(y, np.float32(n_draws - 1))
+    rows, n = cdf.shape
+
+    def buf(name: str, dtype: type[np.number] = np.float32) -> NDArray[Any] | None:
+        return None if scratch is None else scratch.get(name, (rows, n), dtype)
+
+    y = np.multiply(cdf, scale[:, None], dtype=np.float32, out=buf("sampling_y"))
+    k = np.minimum(y, np.float32(n_draws - 1), out=buf("sampling_k"))
     np.floor(k, out=k)
     y -= k  # fraction within the stratum; >= 1 only at the end, where the count is n
-    flat = k.astype(np.int32)
+    flat = buf("sampling_flat", np.int32)
+    if flat is None:
+        flat = k.astype(np.int32)
+    else:
+        np.copyto(flat, k, casting="unsafe")
     flat += (np.arange(rows, dtype=np.int32) * np.int32(n_draws))[:, None]
     u = rng.random(rows * n_draws, dtype=np.float32)
-    k += u.take(flat) < y
-    counts = np.empty_like(k)
+    hit = u.take(flat, out=buf("sampling_u"), mode="clip")
+    np.less(hit, y, out=y)  # y <- [U_k < fraction] as 0/1
+    k += y
+    counts = np.empty_like(k) if scratch is None else buf("sampling_counts")
+    assert counts is not None
     counts[:, 0] = k[:, 0]
     np.subtract(k[:, 1:], k[:, :-1], out=counts[:, 1:])
     return counts
@@ -162,28 +183,29 @@ def iid_indices(weights: FloatArray, n_draws: int, rng: np.random.Generator) -> 
     nb = blocks.shape[1]
     totals = np.matmul(blocks, _ONES)  # (rows, nb) float32
     if nb <= _MATMUL_CUMSUM_MAX:
-        ends = np.matmul(totals, _upper(nb)).astype(np.float64)
+        ends = np.matmul(totals, _upper(nb))
     else:
-        ends = np.cumsum(totals, axis=-1, dtype=np.float64)
-    scale = ends[:, -1:]
-    target = rng.random((rows, n_draws)) * scale  # in units of the row's total weight
-    row_base = np.arange(rows)[:, None]
+        ends = np.cumsum(totals, axis=-1, dtype=np.float64).astype(np.float32)
+    u = rng.random((rows, n_draws), dtype=np.float32)
+    u *= ends[:, -1:]  # target, in units of the row's total weight
     if n_draws * 8 <= nb:
         # Few draws: count the block ends at or below the target (no search).
-        block = np.count_nonzero(ends[:, None, :] <= target[:, :, None], axis=-1)
+        block = (ends[:, None, :] <= u[:, :, None]).sum(axis=-1)
     else:
         # Rows' block CDFs laid end to end, row r shifted to [r, r + 1]: one searchsorted.
-        keys = ends / scale
+        row_base = np.arange(rows)[:, None]
+        keys = (ends / ends[:, -1:]).astype(np.float64)
         keys += row_base
-        block = np.searchsorted(keys.ravel(), (target / scale + row_base).ravel(), side="right")
-        block = block.reshape(rows, n_draws) - row_base * nb
+        q = (u / ends[:, -1:]).astype(np.float64)
+        q += row_base
+        block = np.searchsorted(keys.ravel(), q.ravel(), side="right").reshape(rows, n_draws)
+        block -= row_base * nb
     np.minimum(block, nb - 1, out=block)
-    np.maximum(block, 0, out=block)
-    flat_block = (block + row_base * nb).ravel()
-    start = (ends.ravel()[flat_block] - totals.ravel()[flat_block]).reshape(target.shape)
-    residual = (target - start).astype(np.float32)
-    within = np.matmul(blocks.reshape(rows * nb, _BLOCK)[flat_block], _UPPER)
-    j = np.count_nonzero(within <= residual.reshape(-1, 1), axis=-1).reshape(rows, n_draws)
+    flat_block = block + (np.arange(rows) * nb)[:, None]
+    u -= ends.ravel()[flat_block]
+    u += totals.ravel()[flat_block]  # residual within the chosen block
+    within = np.matmul(blocks.reshape(rows * nb, _BLOCK)[flat_block], _UPPER)  # (rows, n, 16)
+    j = (within <= u[..., None]).sum(axis=-1)
     idx = block * _BLOCK + np.minimum(j, _BLOCK - 1)
     np.minimum(idx, n - 1, out=idx)
     return idx.reshape(*batch, n_draws)

@@ -31,7 +31,8 @@ per planning thread); :func:`plan` is the one-off form.
 Per-stage wall times (``time.perf_counter``; measuring only, the core reads no clock for its
 decisions): predict = motion model; measure = the generator; update = evaluating the noiseless
 measurement of every particle from every action's pose (a grid the generators also read) and
-the weight update; reward = divergence and discounting.
+the weight update; reward = divergence and discounting. Set-up (paths, pruning, buffers) is in
+``total_s`` only.
 """
 
 from __future__ import annotations
@@ -61,7 +62,8 @@ from mexgen_gcs.core.paths import (
 )
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.reward import turn_cost
-from mexgen_gcs.core.rollout import PlanningBelief, Workspace, rollout_gains
+from mexgen_gcs.core.rollout import PlanningBelief, rollout_gains
+from mexgen_gcs.core.workspace import Workspace
 from mexgen_gcs.errors import ConfigError, PlannerError
 
 FloatArray = NDArray[np.float64]
@@ -72,10 +74,6 @@ STAGES = ("predict", "measure", "update", "reward")
 
 _COURSE_MIN_SPEED_M_S = 0.5
 """Below this horizontal speed the current course is taken from the yaw."""
-_PAD = 16
-"""The rollout pads the particle axis to a multiple of this (the samplers' block size)."""
-_GRID_CHUNK = 1 << 16
-"""Particle x action x tag evaluations of the power grid per call (bounds the temporaries)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,6 +104,9 @@ class PlannerConfig:
     """Weight of the turn cost |heading - course| / 180 deg subtracted from an action's value."""
     prune_horizon_s: float | None = None
     """An action is pruned if its path leaves the area within this time; None = the look-ahead."""
+    mexgen_stratified: bool = True
+    """MexGen draws its M samples stratified (faster, never noisier) or, if False,
+    independently as in the paper's description (see generators.MexGen)."""
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
@@ -133,7 +134,8 @@ class PlannerConfig:
         return max(1, round(self.lookahead_s / self.step_s))
 
     def generator(self) -> MeasurementGenerator:
-        return make_generator(self.method, self.samples, self.mc_rollouts)
+        return make_generator(self.method, self.samples, self.mc_rollouts,
+                              self.mexgen_stratified)
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -71,7 +71,6 @@ def renyi_gain(
     (B..., N) float32 buffer, so that a rollout allocates nothing per step.
     """
     _check_alpha(alpha)
-    offset = alpha * np.asarray(post_log_total) + (1.0 - alpha) * np.asarray(prior_log_total)
     if alpha > 1.0:  # the exponent can be positive: take the exact path
         post = np.asarray(log_w_post, np.float64) - np.asarray(post_log_total)[..., None]
         prior = np.asarray(log_w_prior, np.float64) - np.asarray(prior_log_total)[..., None]
@@ -80,16 +79,17 @@ def renyi_gain(
     b += log_w_post
     b *= np.float32(alpha)
     np.exp(b, out=b)
-    mix = b.sum(axis=-1, dtype=np.float32).astype(np.float64)
-    under = mix < 1e-30
-    if under.any():
+    mix = np.asarray(b.sum(axis=-1, dtype=np.float32), dtype=np.float64)
+    if mix.min(initial=1.0) < 1e-30:
+        under = mix < 1e-30
+        exact = alpha * log_w_post[under].astype(np.float64) + (1.0 - alpha) * log_w_prior[under]
         log_mix = np.log(np.where(under, 1.0, mix))
-        rows = np.nonzero(under)
-        exact = alpha * log_w_post[rows].astype(np.float64) + (1.0 - alpha) * log_w_prior[rows]
-        log_mix[rows] = logsumexp(exact)
+        log_mix[under] = logsumexp(exact)
     else:
         log_mix = np.log(mix)
-    return np.maximum((log_mix - offset) / (alpha - 1.0), 0.0)
+    log_mix -= alpha * np.asarray(post_log_total) + (1.0 - alpha) * np.asarray(prior_log_total)
+    log_mix *= 1.0 / (alpha - 1.0)
+    return np.maximum(log_mix, 0.0)
 
 
 def turn_cost(headings_rad: FloatArray, course_rad: float) -> FloatArray:

@@ -9,11 +9,10 @@ the generator's number of rollouts (MC-M: M, otherwise 1) and N' is N padded to 
 16 (the samplers' block size) with zero-weight copies of particle 0, which never influence a
 result. The only Python loops are over look-ahead steps (and tags for the motion model).
 
-Large arrays live in a :class:`Workspace` that a :class:`~mexgen_gcs.core.planner.Planner`
-keeps between plans: on this class of machine a page fault costs ~2 us, and glibc returns
-freed megabyte-sized blocks to the OS, so allocating the grids afresh for every plan would cost
-more than the arithmetic. The noiseless-power grid is evaluated in chunks of at most
-``GRID_CHUNK`` values so that the radio model's temporaries stay small as well.
+Large arrays live in a :class:`~mexgen_gcs.core.workspace.Workspace` that a
+:class:`~mexgen_gcs.core.planner.Planner` keeps between plans (that module says why). The
+noiseless-power grid (:mod:`core.power_grid`) is evaluated in place for up to ``GRID_CHUNK``
+values at a time, so its size in memory is bounded as well.
 """
 
 from __future__ import annotations
@@ -27,19 +26,25 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.generators import BeliefView, MeasurementGenerator
-from mexgen_gcs.core.likelihood import DetectionTable, bayes_update, log_likelihood
+from mexgen_gcs.core.likelihood import (
+    DetectionTable,
+    bayes_update,
+    likelihood_coefficients,
+    log_likelihood,
+)
 from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.power_grid import power_grid
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.reward import renyi_gain
+from mexgen_gcs.core.workspace import Workspace
 
 FloatArray = NDArray[np.float64]
 Float32Array = NDArray[np.float32]
 
 PAD = 16
 """The particle axis is padded to a multiple of this."""
-GRID_CHUNK = 28 * 1024
-"""Most power-grid values (tags x actions x particles x steps) per radio-model call: the
-model's float32 temporaries then stay below glibc's 128 KiB mmap threshold."""
+GRID_CHUNK = 1 << 16
+"""Most power-grid values (steps x tags x actions x particles) evaluated at once."""
 
 
 class PlanningBelief(Protocol):
@@ -53,28 +58,6 @@ class PlanningBelief(Protocol):
     def modes(self) -> ModeArray: ...
     @property
     def motion(self) -> MotionModel: ...
-
-
-class Workspace:
-    """Reusable float32 buffers, grown on demand; views are contiguous prefixes.
-
-    Not thread-safe: one workspace per planning thread.
-    """
-
-    def __init__(self) -> None:
-        self._buffers: dict[str, Float32Array] = {}
-
-    def get(self, name: str, shape: tuple[int, ...]) -> Float32Array:
-        size = math.prod(shape)
-        buf = self._buffers.get(name)
-        if buf is None or buf.size < size:
-            buf = np.empty(size, dtype=np.float32)
-            self._buffers[name] = buf
-        return buf[:size].reshape(shape)
-
-    @property
-    def nbytes(self) -> int:
-        return sum(b.nbytes for b in self._buffers.values())
 
 
 def rollout_gains(
@@ -117,26 +100,21 @@ def rollout_gains(
     xy[..., n:, :] = xy[..., :1, :]
     t1 = clock()
 
-    # The noiseless power of every particle from every action's receiver pose, all steps.
-    rx = np.empty((steps, 1, n_act, 1, 3), dtype=np.float32)
+    rx = np.empty((steps, 1, n_act, 1, 3), dtype=np.float32)  # receiver pose per step, action
     rx[..., :2] = paths[:, None, :, None, :]
     rx[..., 2] = alt_m
     yaw = headings_rad.astype(np.float32)[None, :, None]  # (1, A, 1) against rows (T, A, R)
     yaw_grid = yaw[..., None]  # (1, A, 1, 1) against particles (T, A, 1, N')
-    power = ws.get("power", (steps, n_tags, n_act, 1, n_pad))
-    log_pd = ws.get("log_pd", power.shape)
-    per_step = n_tags * n_act * n_pad
-    k_chunk = max(1, GRID_CHUNK // per_step)
-    p_chunk = n_pad if per_step <= GRID_CHUNK else max(PAD, GRID_CHUNK // (n_tags * n_act))
-    for k0 in range(0, steps, k_chunk):
-        ks = slice(k0, k0 + k_chunk)
-        for p0 in range(0, n_pad, p_chunk):
-            ps = slice(p0, p0 + p_chunk)
-            power[ks, ..., ps] = radio.power_db(xy[ks, ..., ps, :], rx[ks, ..., None, :], yaw_grid)
-            table.log_pd(power[ks, ..., ps], out=log_pd[ks, ..., ps])
-    t2 = clock()
+    # The noiseless power of every particle from every action's pose (and what the update
+    # derives from it) is evaluated for a chunk of steps at a time, into workspace buffers.
+    chunk = max(1, GRID_CHUNK // (n_tags * n_act * n_pad))
+    grid_shape = (min(chunk, steps), n_tags, n_act, 1, n_pad)
+    power = ws.get("power", grid_shape)
+    log_pd = ws.get("log_pd", grid_shape)
+    coef = ws.get("coef", (grid_shape[0], n_tags, n_act, 2, n_pad))  # likelihood_coefficients
+    grid_scratch = [ws.get(f"grid{j}", grid_shape) for j in range(3)]
+    lut_scratch = (ws.get("lut_f", grid_shape), ws.get("lut_i", grid_shape, np.int32))
     timing["predict"] += t1 - t0
-    timing["update"] += t2 - t1
 
     shape = (n_tags, n_act, n_roll, n_pad)
     log_w = ws.get("log_w", shape)  # max-shifted: normalised = log_w - log_total
@@ -152,22 +130,36 @@ def rollout_gains(
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
         t2 = clock()
+        j = k % chunk
+        if j == 0:
+            ks = slice(k, k + chunk)
+            c = len(range(steps)[ks])
+            power_grid(radio, xy[ks], rx[ks, ..., None, :], yaw_grid, power[:c],
+                       [g[:c] for g in grid_scratch])
+            table.log_pd(power[:c], out=log_pd[:c], scratch=(lut_scratch[0][:c],
+                                                              lut_scratch[1][:c]))
+            likelihood_coefficients(power[:c, ..., 0, :], log_pd[:c, ..., 0, :],
+                                    radio.noise_var, out=coef[:c])
+            t_grid = clock()
+            update_s += t_grid - t2
+            t2 = t_grid
         rx_k = rx[k]
         view = BeliefView(
             weights=w,
             positions_m=xy[k],
-            power_db=power[k],
-            log_pd=log_pd[k],
+            power_db=power[j],
+            log_pd=log_pd[j],
             mean_power=lambda p, rx_k=rx_k: radio.power_db(p, rx_k, yaw),
             detection_probability=radio.detection_probability,
             noise_std_db=radio.noise_std_db,
+            scratch=ws,
         )
         # 2. measure
         meas = generator.generate(view, rng)
         t3 = clock()
         # 3. update: log_w_next <- posterior log-weights, w <- posterior weights
-        log_likelihood(meas.z_db, meas.detected, power[k], log_pd[k], table, radio.noise_var,
-                       out=log_w_next)
+        log_likelihood(meas.z_db, meas.detected, power[j], log_pd[j], table, radio.noise_var,
+                       out=log_w_next, coef=coef[j])
         post = bayes_update(log_w, log_w_next, out_weights=w)
         t4 = clock()
         # 4. reward

@@ -481,7 +481,7 @@ class MissionController:
     def _receiver_pose(self, det: Any) -> tuple[np.ndarray, float]:
         """The receiver pose carried in the datagram, else our telemetry now (ENU, radians)."""
         if det.lat is not None and det.lon is not None and det.alt_m is not None:
-            e, n, u = self.frame.to_enu(det.lat, det.lon, det.alt_m + self.frame.alt0_m)
+            e, n, u = self.frame.to_enu(det.lat, det.lon, det.alt_m)  # alt_m is AMSL
             yaw = math.radians(det.yaw_deg) if det.yaw_deg is not None else (
                 math.radians(self.vehicle.hub.latest.yaw_deg))
             return np.array([float(e), float(n), float(u)]), yaw

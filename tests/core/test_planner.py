@@ -28,7 +28,7 @@ from mexgen_gcs.errors import ConfigError, PlannerError
 METHODS = ["pim", "mexgen", "mc"]
 BIG_AREA = SearchArea.rectangle(-1000, 1000, -1000, 1000)
 HOVER = VehicleState(np.array([0.0, 0.0, 50.0]), np.zeros(2), 0.0)
-# Detection range ~340 m at 50 m: a belief 450 m away can only be heard by flying to it.
+# Detection range ~340 m at 50 m: a belief 350-450 m away is only heard by flying to it.
 SHORT_RANGE = RadioModel(sensitivity_db=-45.0)
 
 
@@ -51,18 +51,18 @@ def small_config(method="mexgen", **kw):
 @pytest.mark.parametrize("method", ["pim", "mexgen"])
 def test_picks_the_clearly_best_direction(method, heading_deg):
     h = math.radians(heading_deg)
-    centre = 450.0 * np.array([math.sin(h), math.cos(h)])
+    centre = 350.0 * np.array([math.sin(h), math.cos(h)])  # heard in about half the steps
     for seed in range(3):
         belief = cluster(centre, seed=seed)
         result = plan([belief], HOVER, BIG_AREA, SHORT_RANGE, PlannerConfig(method=method),
                       np.random.default_rng(seed))
         assert result.heading_deg == heading_deg
-        assert result.rewards[result.chosen] > np.sort(result.rewards)[-2] * 1.05
+        assert result.rewards[result.chosen] > np.sort(result.rewards)[-2] * 1.2
 
 
 def test_mc_picks_the_clearly_best_direction_in_expectation():
-    """MC-8 is noisy by design (the paper's point): its mean reward is best towards the tag and
-    it chooses that heading in most plans."""
+    """MC-8 is noisy by design (the paper's point): its mean reward is best towards the tag, it
+    chooses that heading in most plans and never strays more than one heading from it."""
     belief = cluster([450.0, 0.0])
     planner = Planner(PlannerConfig(method="mc"), SHORT_RANGE, BIG_AREA)
     rng = np.random.default_rng(0)
@@ -70,6 +70,7 @@ def test_mc_picks_the_clearly_best_direction_in_expectation():
     mean_rewards = np.mean([r.rewards for r in results], axis=0)
     assert planner.headings_rad[np.argmax(mean_rewards)] == pytest.approx(math.pi / 2)
     assert sum(r.heading_deg == 90.0 for r in results) >= 6
+    assert all(abs(r.heading_deg - 90.0) <= 45.0 for r in results)
 
 
 @pytest.mark.parametrize("method", METHODS)

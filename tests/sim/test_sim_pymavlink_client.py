@@ -40,6 +40,10 @@ def test_heartbeat_position_modes_and_arming(sim_factory: SimFactory, client: An
              & M.MAV_SYS_STATUS_SENSOR_GPS and m.onboard_control_sensors_health
              & M.MAV_SYS_STATUS_PREARM_CHECK)
 
+    client.set_mode("POSCTL")  # mavutil's own PX4 mode switch (DO_SET_MODE)
+    assert wait_for(client, "COMMAND_ACK").result == M.MAV_RESULT_ACCEPTED
+    wait_for(client, "HEARTBEAT", lambda m: mavutil.interpret_px4_mode(
+        m.base_mode, m.custom_mode) == "POSCTL", 3.0)
     assert command(client, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
     wait_for(client, "HEARTBEAT", lambda m: m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, 3.0)
     # PX4 custom mode AUTO/TAKEOFF through DO_SET_MODE climbs to MIS_TAKEOFF_ALT (2.5 m).

@@ -1,0 +1,187 @@
+"""The post-flight report of one log: report.md, report.html, summary.json and PNG plots.
+
+Frame: local ENU metres about home for east/north; WGS84 degrees for lat/lon; localisation
+times in seconds since airborne.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from mexgen_gcs.analysis import plots
+from mexgen_gcs.analysis.calibration import PathLossFit, calibrate
+from mexgen_gcs.analysis.document import Document, fmt
+from mexgen_gcs.analysis.flightdata import FlightData
+from mexgen_gcs.analysis.summary import FlightSummary, summarise
+from mexgen_gcs.analysis.truth import Truth
+from mexgen_gcs.errors import EstimationError
+
+REPORT_MD = "report.md"
+REPORT_HTML = "report.html"
+SUMMARY_JSON = "summary.json"
+PLOTS = {
+    "path": "path.png",
+    "tags": "tags_over_time.png",
+    "rssi": "rssi_distance.png",
+    "timing": "planner_timing.png",
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Report:
+    out_dir: Path
+    markdown: Path
+    html: Path
+    summary_json: Path
+    plots: dict[str, Path]
+    summary: FlightSummary
+    fits: dict[str, PathLossFit]
+    """Path-loss fits by position source (estimate, truth)."""
+
+
+def pooled_fits(flight: FlightData, truth: Truth | None) -> dict[str, PathLossFit]:
+    """Path-loss fits over all tags: against the estimates, and the truth when known. A
+    source with too little data is left out."""
+    fits: dict[str, PathLossFit] = {}
+    tags_est = tuple(t for t in flight.tag_ids if len(flight.estimates[t]))
+    sources: list[tuple[str, tuple[str, ...]]] = [("estimate", tags_est)]
+    if truth is not None:
+        sources.append(("truth", tuple(t for t in flight.tag_ids if t in truth.tags)))
+    for source, tags in sources:
+        if not tags:
+            continue
+        try:
+            fits[source] = calibrate(flight, tags, source, truth)
+        except EstimationError:
+            continue
+    return fits
+
+
+def write_report(flight: FlightData, out_dir: Path, truth: Truth | None = None) -> Report:
+    """Compute, plot and write the report of one flight into out_dir (created)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    summary = summarise(flight, truth)
+    fits = pooled_fits(flight, truth)
+    paths = {
+        "path": plots.plot_path(flight, summary, truth, out_dir / PLOTS["path"]),
+        "tags": plots.plot_tags_over_time(flight, summary, out_dir / PLOTS["tags"]),
+        "rssi": plots.plot_rssi_distance(flight, fits.get("estimate"), out_dir / PLOTS["rssi"]),
+        "timing": plots.plot_planner_timing(flight, out_dir / PLOTS["timing"]),
+    }
+    doc = report_document(flight, summary, fits)
+    md = out_dir / REPORT_MD
+    md.write_text(doc.markdown(), encoding="utf-8")
+    page = out_dir / REPORT_HTML
+    page.write_text(doc.html(), encoding="utf-8")
+    js = out_dir / SUMMARY_JSON
+    payload: dict[str, Any] = summary.to_dict()
+    payload["path_loss_fits"] = {k: asdict(v) for k, v in fits.items()}
+    js.write_text(json.dumps(json_safe(payload), indent=1), encoding="utf-8")
+    return Report(out_dir, md, page, js, paths, summary, fits)
+
+
+def json_safe(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def _km(m: float) -> str:
+    return f"{m / 1000.0:.2f} km"
+
+
+def report_document(flight: FlightData, s: FlightSummary,
+                    fits: dict[str, PathLossFit]) -> Document:
+    tot = s.totals
+    seed = f", seed {tot.seed}" if tot.seed is not None else ""
+    doc = Document(f"Flight report: {tot.name} ({tot.method}{seed})")
+    sec = doc.section("Mission")
+    end = tot.end_reason + (f" (exit {tot.exit_code})" if tot.exit_code is not None else "")
+    rows = [
+        ("Log", s.log_file),
+        ("Mission kind", tot.kind),
+        ("Planner method", ", ".join(tot.methods_used)),
+        ("Start", tot.start_utc),
+        ("Duration", f"{tot.duration_s:.1f} s"),
+        ("Airborne", "–" if tot.airborne_s is None else f"{tot.airborne_s:.1f} s"),
+        ("Distance flown", _km(tot.distance_flown_m)),
+        ("End reason", end),
+        ("Tags localised", f"{tot.tags_localised} of {tot.tags_total}"),
+        ("Detections", str(tot.detections)),
+        ("Radio heartbeats", str(tot.heartbeats)),
+        ("Plans", str(tot.plans)),
+        ("Radio rejects", ", ".join(f"{k} {v}" for k, v in tot.radio_rejects.items()) or "none"),
+        ("Software", ", ".join(f"{k} {v}" for k, v in tot.software.items() if v) or "–"),
+    ]
+    sec.table(("", ""), rows)
+    if tot.torn_last_line:
+        sec.para("The log ends with a torn (partial) line, as after a crash; it was skipped.")
+    if not tot.complete:
+        sec.para("The log has no result record: the GCS did not finish the mission normally.")
+
+    sec = doc.section("Failsafe and safety events")
+    if s.safety_events:
+        sec.table(("t since airborne (s)", "event", "detail"),
+                  [(fmt(e.after_s), e.kind, e.detail) for e in s.safety_events])
+    else:
+        sec.para("None.")
+
+    sec = doc.section("Tags")
+    headers = ["tag", "detections", "localised after (s)", "lat", "lon", "east (m)",
+               "north (m)", f"{int(flight.mission.localisation.confidence * 100)}% radius (m)",
+               "1-sigma major (m)", "existence"]
+    if s.has_truth:
+        headers += ["error at localisation (m)", "final error (m)", "RMS tracking error (m)"]
+    trows = []
+    for t in s.tags:
+        row = [t.tag_id, str(t.detections), fmt(t.localised_after_s),
+               fmt(t.final_lat_deg, 6), fmt(t.final_lon_deg, 6), fmt(t.final_east_m),
+               fmt(t.final_north_m), fmt(t.final_radius_m), fmt(t.final_sigma_major_m),
+               fmt(t.final_existence, 3)]
+        if s.has_truth:
+            row += [fmt(t.error_at_localisation_m), fmt(t.final_error_m),
+                    fmt(t.tracking_rms_error_m)]
+        trows.append(row)
+    sec.table(headers, trows)
+    sec.para("Position, radius and existence are the final estimate; 'localised after' is the "
+             "time from airborne to the tag_localised event"
+             + ("; errors are distances to the simulator's truth at that moment, and the RMS "
+                "tracking error is over every pulse of the flight." if s.has_truth else "."))
+
+    sec = doc.section("Planner timing (wall ms per plan)")
+    if s.timing:
+        sec.table(("method", "stage", "plans", "median", "p95", "max"),
+                  [(x.method, x.stage, str(x.plans), fmt(x.median_ms, 2), fmt(x.p95_ms, 2),
+                    fmt(x.max_ms, 2)) for x in s.timing])
+    else:
+        sec.para("No plans in this log.")
+
+    sec = doc.section("Path-loss fit")
+    radio = flight.mission.radio
+    frows = [("mission file", fmt(radio.p0_db, 2), fmt(radio.path_loss_exponent, 3),
+              fmt(radio.noise_std_db, 2), "–", "–")]
+    for source, f in fits.items():
+        frows.append((f"fit to {source} positions", f"{f.p0_db:.2f} ± {f.p0_se_db:.2f}",
+                      f"{f.path_loss_exponent:.3f} ± {f.n_se:.3f}", fmt(f.noise_std_db, 2),
+                      str(f.used), str(f.outliers)))
+    sec.table(("model", "P0 (dB)", "n", "noise std (dB)", "detections", "clutter rejected"),
+              frows)
+    best = fits.get("truth") or fits.get("estimate")
+    if best is not None:
+        sec.para("As a mission file section (mexgen-gcs analyze LOG --calibrate TAG for one tag):")
+        sec.code(best.radio_block(flight.mission.radio.model_dump()))
+
+    sec = doc.section("Plots")
+    sec.image(PLOTS["path"], "Flight path with detections coloured by RSSI and final estimates")
+    sec.image(PLOTS["tags"], "Uncertainty radius and existence probability per tag over time")
+    sec.image(PLOTS["rssi"], "RSSI against distance to the estimate, with the fitted path loss")
+    sec.image(PLOTS["timing"], "Planner wall time per stage")
+    return doc

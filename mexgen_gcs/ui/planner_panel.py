@@ -1,0 +1,80 @@
+"""The planner panel: method, target tags, the expected reward of each of the 8 headings as
+bars, the chosen heading, planning time by stage and the time to the next re-plan.
+
+Headings are compass degrees (0 north, clockwise).
+"""
+
+from __future__ import annotations
+
+from rich.console import RenderableType
+from rich.text import Text
+from textual.widget import Widget
+
+from mexgen_gcs.mission.snapshot import PlanView
+from mexgen_gcs.ui.format import bar, compass_name, finite, reward_fractions
+
+STAGE_NAMES = {"predict": "pred", "measure": "meas", "update": "upd", "reward": "rew"}
+
+
+def planner_text(plan: PlanView | None, method: str, width: int) -> Text:
+    """The panel's content for a plan (or the method alone before the first plan)."""
+    text = Text(no_wrap=True, overflow="ellipsis")
+    if plan is None:
+        text.append(f"{method}", style="bold cyan")
+        text.append("  no plan yet\n", style="dim")
+        return text
+    text.append(plan.method, style="bold cyan")
+    targets = ",".join(plan.targets) if plan.targets else "-"
+    text.append("  target ", style="dim")
+    text.append(targets, style="bold")
+    if plan.method != method:
+        text.append(f"  → {method}", style="bold yellow")
+    text.append("\n")
+    chosen = plan.chosen_heading_deg
+    text.append("heading ", style="dim")
+    text.append(f"{chosen:03.0f}° {compass_name(chosen)}", style="bold bright_white")
+    text.append("\n")
+    fractions = reward_fractions(plan.rewards)
+    label_w = 9  # "NE  045° "
+    value_w = 9
+    bar_w = max(width - label_w - value_w - 2, 4)
+    for h, r, f in zip(plan.headings_deg, plan.rewards, fractions, strict=False):
+        is_chosen = abs(((h - chosen + 180.0) % 360.0) - 180.0) < 1e-6
+        style = "bold green" if is_chosen else "green"
+        text.append(f"{compass_name(h):<3} {h:03.0f}° ", style="bold" if is_chosen else "")
+        if f is None:
+            text.append("pruned".ljust(bar_w), style="dim")
+            text.append(" " * value_w)
+        else:
+            text.append(bar(f, bar_w), style=style)
+            text.append(f" {r:>8.3g}", style="bold" if is_chosen else "")
+        text.append(" ◀\n" if is_chosen else "\n", style="bold")
+    stages = [f"{STAGE_NAMES.get(k, k)} {v:.0f}" for k, v in plan.timing_ms.items()
+              if k != "total" and finite(v)]
+    total = plan.timing_ms.get("total")
+    text.append("ms ", style="dim")
+    text.append(" ".join(stages))
+    if finite(total):
+        text.append(f" = {total:.0f}", style="bold")
+    text.append("\n")
+    text.append("next re-plan in ", style="dim")
+    text.append(f"{plan.next_plan_in_s:.1f} s", style="bold")
+    return text
+
+
+class PlannerPanel(Widget):
+    """What the planner decided last and why."""
+
+    def __init__(self, *, id: str | None = None) -> None:
+        super().__init__(id=id)
+        self.plan: PlanView | None = None
+        self.method = "-"
+        self.border_title = "Planner"
+
+    def show(self, plan: PlanView | None, method: str) -> None:
+        self.plan = plan
+        self.method = method
+        self.refresh()
+
+    def render(self) -> RenderableType:
+        return planner_text(self.plan, self.method, self.content_size.width)
