@@ -32,7 +32,8 @@ def main() -> int:
     a = p.parse_args()
     out = Path(tempfile.mkdtemp(prefix="measure-"))
     cmd = [sys.executable, "-m", "mexgen_gcs", "sitl", a.mission, "--speedup", str(a.speedup),
-           "--seed", str(a.seed), "--log-dir", str(out)] + (["--headless"] if a.headless else [])
+           "--seed", str(a.seed), "--log-dir", str(out),
+           "--mavlink-port", "0", "--radio-port", "0"] + (["--headless"] if a.headless else [])
     t0 = time.monotonic()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE if a.headless else None)
     ps = psutil.Process(proc.pid)
@@ -50,8 +51,9 @@ def main() -> int:
     log_dir = next(out.iterdir())
     log = read_flight_log(log_dir)
     plans = [r["t"] for r in log.of_type("plan")]
+    results = list(log.of_type("result"))
     gaps = [b - a_ for a_, b in itertools.pairwise(plans)]
-    result = log.of_type("result")[-1] if log.of_type("result") else {}
+    result = results[-1] if results else {}
     interval = log.header["mission"]["planner"]["replan_interval_s"]
     print(json.dumps({
         "mission": a.mission, "speedup": a.speedup, "headless": a.headless,

@@ -62,6 +62,13 @@ def _initial_velocity(
     return state
 
 
+def _single_mode_initial(
+    xy: FloatArray, speed_min: float, speed_max: float, rng: np.random.Generator
+) -> tuple[FloatArray, ModeArray]:
+    state = _initial_velocity(xy, speed_min, speed_max, rng)
+    return state, np.zeros(xy.shape[0], np.int8)
+
+
 @dataclass(frozen=True, slots=True)
 class RandomWalk:
     """Position random walk: x' = x + w, w ~ N(0, std^2 dt) per axis; velocity is zero.
@@ -146,8 +153,7 @@ class ConstantVelocity:
     def initial(
         self, xy: FloatArray, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        state = _initial_velocity(xy, self.speed_min_m_s, self.speed_max_m_s, rng)
-        return state, np.zeros(xy.shape[0], np.int8)
+        return _single_mode_initial(xy, self.speed_min_m_s, self.speed_max_m_s, rng)
 
 
 @dataclass(frozen=True, slots=True)
@@ -172,8 +178,7 @@ class ConstantTurnRate:
     def initial(
         self, xy: FloatArray, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        state = _initial_velocity(xy, self.speed_min_m_s, self.speed_max_m_s, rng)
-        return state, np.zeros(xy.shape[0], np.int8)
+        return _single_mode_initial(xy, self.speed_min_m_s, self.speed_max_m_s, rng)
 
 
 @lru_cache(maxsize=64)
