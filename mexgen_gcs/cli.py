@@ -69,13 +69,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--radio", default=None, metavar="udp://HOST:PORT",
                    help="where detections arrive (default: the mission's receiver.listen)")
 
-    p = sub.add_parser("analyze", help="post-flight report and plots from a flight log")
-    p.add_argument("log", metavar="LOG", help="flight log directory or its flight.jsonl")
+    p = sub.add_parser("analyze", help="post-flight report and plots from flight logs "
+                       "(several logs: a comparison)")
+    p.add_argument("log", nargs="+", metavar="LOG",
+                   help="flight log directory or its flight.jsonl; several for a comparison")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="where to write the report (default: LOG/report)")
+                   help="where to write the report (default: LOG/report; several logs: "
+                        "comparison/ beside the first)")
+    p.add_argument("--truth", default=None, metavar="truth.jsonl",
+                   help="simulator ground truth for errors (default: truth.jsonl beside LOG)")
+    p.add_argument("--calibrate", default=None, metavar="TAG",
+                   help="fit P0, n and noise to TAG's detections (or 'all' pooled) and print "
+                        "a mission-file radio: block")
+    p.add_argument("--tag-position", default=None, metavar="LAT,LON",
+                   help="surveyed position of the --calibrate tag (default: the ground truth "
+                        "if known, else the estimate)")
+    p.add_argument("--export", action="store_true",
+                   help="also write flight.geojson, tags.csv and path.csv for GIS tools")
 
-    p = sub.add_parser("replay", help="replay a flight log in the terminal UI")
+    p = sub.add_parser("replay", help="re-run the filters on a flight log and compare planner "
+                       "choices, in the terminal UI or as a table")
     p.add_argument("log", metavar="LOG", help="flight log directory or its flight.jsonl")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="the method to compare with the recorded one (default: pim for a "
+                        "mexgen flight, else mexgen)")
+    p.add_argument("--headless", action="store_true",
+                   help="print the comparison as a table instead of the terminal UI")
+    p.add_argument("--seed", type=_nonnegative_int, default=None, metavar="N",
+                   help="seed of the replay's random draws (default: the flight's seed)")
     p.add_argument("--speedup", type=_positive_float, default=1.0, metavar="K",
                    help="replay K times faster than the flight (default: 1)")
 

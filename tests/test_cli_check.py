@@ -121,7 +121,7 @@ def test_documented_flags_parse() -> None:
                                                           "udp://0.0.0.0:14600", True, None)
     assert parser.parse_args(["fly", "m.yaml"]).radio is None  # the mission's receiver.listen
     a = parser.parse_args(["analyze", "L", "--out", "O"])
-    assert (a.log, a.out) == ("L", "O")
+    assert (a.log, a.out) == (["L"], "O")
     assert parser.parse_args(["replay", "L"]).log == "L"
     a = parser.parse_args(["experiment", "localise", "--model", "cv-ift", "--methods",
                            "mexgen,pim", "--starts", "2", "--reps", "3", "--workers", "4",

@@ -204,17 +204,25 @@ def calibration_data(flight: FlightData, tags: tuple[str, ...], source: str,
                      front_back_db: float | None = None) -> tuple[FloatArray, FloatArray,
                                                                   FloatArray]:
     """(distance_m, gain_db, rssi_db) of the detections of ``tags`` (pooled), positions from
-    ``source`` (see :func:`tag_positions`)."""
+    ``source`` (see :func:`tag_positions`). Tags without a position are left out; if none
+    has one, the first tag's EstimationError is raised."""
     ds, gs, zs = [np.zeros(0)], [np.zeros(0)], [np.zeros(0)]
     moving_estimate = source == "estimate" and flight.mission.filter.motion not in ("static",
                                                                                     "rw")
+    missing: list[EstimationError] = []
     for tid in tags:
-        pos = tag_positions(flight, tid, source, truth, given_en_m)
+        try:
+            pos = tag_positions(flight, tid, source, truth, given_en_m)
+        except EstimationError as exc:  # pooled: use the tags that have positions
+            missing.append(exc)
+            continue
         d, g, z = detection_geometry(flight, tid, pos, front_back_db,
                                      only_when_localised=moving_estimate)
         ds.append(d)
         gs.append(g)
         zs.append(z)
+    if missing and len(missing) == len(tags):
+        raise missing[0]
     return np.concatenate(ds), np.concatenate(gs), np.concatenate(zs)
 
 

@@ -139,7 +139,7 @@ def _analyze_one(flight: Any, truth: Any, out: Path | None, export: bool) -> int
 
 def _analyze_many(flights: list[Any], truths: list[Any], out: Path | None,
                   export: bool) -> int:
-    from mexgen_gcs.analysis.compare import label_of, write_comparison
+    from mexgen_gcs.analysis.compare import unique_labels, write_comparison
     from mexgen_gcs.analysis.export import write_exports
     from mexgen_gcs.analysis.summary import summarise
 
@@ -149,8 +149,8 @@ def _analyze_many(flights: list[Any], truths: list[Any], out: Path | None,
     print(f"compared {len(flights)} flights ({', '.join(comp.methods)}): {comp.markdown}")
     print(f"        {comp.html}")
     if export:
-        for f, s in zip(flights, summaries, strict=True):
-            ex = write_exports(f, s, out_dir / label_of(f))
+        for f, s, label in zip(flights, summaries, unique_labels(flights), strict=True):
+            ex = write_exports(f, s, out_dir / label)
             print(f"exports: {ex.geojson}, {ex.tags_csv}, {ex.path_csv}")
     return EXIT_OK
 

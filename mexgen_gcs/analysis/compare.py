@@ -47,6 +47,18 @@ def label_of(flight: FlightData) -> str:
     return flight.log_dir.name or str(flight.path)
 
 
+def unique_labels(flights: Sequence[FlightData]) -> list[str]:
+    """One column label (and export folder name) per flight: its log directory's name, with
+    -2, -3, ... appended where names repeat."""
+    seen: dict[str, int] = {}
+    out = []
+    for f in flights:
+        base = label_of(f)
+        seen[base] = seen.get(base, 0) + 1
+        out.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
+    return out
+
+
 def heat_counts(flights: Sequence[FlightData], extent: tuple[float, float, float, float],
                 cell_m: float = CELL_M) -> np.ndarray:
     """(ny, nx) seconds spent per cell summed over the flights (airborne part only)."""
@@ -96,6 +108,8 @@ def plot_heatmaps(flights: Sequence[FlightData], path: Path,
                     ax.plot(tt.east_m, tt.north_m, color="C0", linewidth=0.8, alpha=0.6)
         ax.set_title(f"{m} ({len(members)} flight{'s' if len(members) != 1 else ''})",
                      fontsize=10)
+        ax.set_xlim(extent[0], extent[1])  # truth tracks may leave the area: keep the map
+        ax.set_ylim(extent[2], extent[3])
         ax.set_xlabel("east (m)")
         ax.set_aspect("equal")
     axes[0].set_ylabel("north (m)")
@@ -112,7 +126,7 @@ def _mean(xs: Sequence[float | None]) -> float | None:
 def comparison_document(flights: Sequence[FlightData],
                         summaries: Sequence[FlightSummary]) -> Document:
     doc = Document(f"Flight comparison ({len(flights)} logs)")
-    labels = [label_of(f) for f in flights]
+    labels = unique_labels(flights)
     sec = doc.section("Side by side")
     tag_ids = list(dict.fromkeys(t.tag_id for s in summaries for t in s.tags))
     has_truth = any(s.has_truth for s in summaries)

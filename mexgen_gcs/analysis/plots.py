@@ -16,7 +16,8 @@ from matplotlib.patches import Ellipse, Polygon
 from scipy.stats import chi2
 
 from mexgen_gcs.analysis.calibration import PathLossFit, detection_geometry, tag_positions
-from mexgen_gcs.analysis.flightdata import STAGES, FlightData
+from mexgen_gcs.analysis.flightdata import FlightData
+from mexgen_gcs.analysis.series import STAGES
 from mexgen_gcs.analysis.summary import FlightSummary
 from mexgen_gcs.analysis.truth import Truth
 

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mexgen_gcs.analysis.flightdata import FlightData, PlanRecord
+from mexgen_gcs.analysis.flightdata import FlightData
+from mexgen_gcs.analysis.series import PlanRecord
 from mexgen_gcs.core.mission_core import MissionCore, PlanRequest
 from mexgen_gcs.core.planner import TagBelief, VehicleState
 from mexgen_gcs.mission.planning import MissionPlanner, PlanOutcome

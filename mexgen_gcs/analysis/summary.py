@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from mexgen_gcs.analysis.flightdata import STAGES, FlightData
+from mexgen_gcs.analysis.flightdata import FlightData
+from mexgen_gcs.analysis.series import STAGES
 from mexgen_gcs.analysis.truth import Truth
 
 #: event kinds that are failsafes or faults worth listing (besides safety events with an

@@ -501,7 +501,7 @@ class MissionController:
                     and time.monotonic() - last_print >= self.opt.headless_progress_s):
                 last_print = time.monotonic()
                 print(self.progress_line(), flush=True)
-            await asyncio.sleep(1.0 / TELEMETRY_LOG_HZ)
+            await self.clock.sleep(1.0 / TELEMETRY_LOG_HZ)  # mission time: same log at any speedup
 
     async def _snapshots(self) -> None:
         while True:
