@@ -83,8 +83,7 @@ class DetectionTable:
         f = None if scratch is None else scratch[0]
         f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
         f += np.float32(self._offset)
-        np.maximum(f, np.float32(0.0), out=f)
-        np.minimum(f, np.float32(self._log_pd.size - 1), out=f)
+        np.clip(f, np.float32(0.0), np.float32(self._log_pd.size - 1), out=f)
         if scratch is None:
             return f.astype(np.int32)
         i = scratch[1]
@@ -164,10 +163,10 @@ def log_likelihood(
         missed:    log(1 - pD(P))                   (looked up only for missed rows)
 
     The dropped constant (-log sqrt(2 pi R), and -z^2/2R on the shared-grid path) cancels when
-    the weights are normalised and in the Renyi divergence. When the grid is shared along the
-    last batch axis (B' = (..., 1), the planner's case) the detection rows are one small matrix
-    product ``[z, 1] @ coef`` per leading index, with ``coef`` (B'[:-1]..., 2, N) from
-    :func:`likelihood_coefficients` (computed here unless given); otherwise four passes.
+    the weights are normalised and in the Renyi divergence. When the grid is shared by the rows
+    along the last batch axis (B' = (..., 1), the planner's MC rollouts) the detection rows are
+    one small matrix product ``[z, 1] @ coef`` per leading index, with ``coef`` (B'[:-1]..., 2,
+    N) from :func:`likelihood_coefficients` (computed here unless given); otherwise four passes.
     Cost O(B N).
     """
     z = np.asarray(z_db, dtype=np.float32)
@@ -180,7 +179,8 @@ def log_likelihood(
     if missed is not None and missed[0].size == det.size:
         np.copyto(out, table.log_miss(power_db))
         return out
-    if power_db.ndim == z.ndim + 1 and power_db.shape[-2] == 1:
+    shared = power_db.ndim == z.ndim + 1 and power_db.shape[-2] == 1 and batch[-1] > 1
+    if coef is not None or shared:
         if coef is None:
             lp = np.broadcast_to(log_pd, power_db.shape)[..., 0, :]
             coef = likelihood_coefficients(power_db[..., 0, :], lp, noise_var_db2)

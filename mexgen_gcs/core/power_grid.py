@@ -44,21 +44,24 @@ def power_grid(
     np.multiply(dx, dx, out=out)
     np.multiply(dy, dy, out=t)
     out += t  # horizontal distance squared
-    dz = np.asarray(-rx_xyz[..., 2], dtype=np.float32)  # tags at z = 0
-    np.add(out, dz * dz, out=t)
-    np.maximum(t, np.float32(radio.min_distance_m**2), out=t)  # distance squared, clamped
+    dz2 = np.square(np.asarray(rx_xyz[..., 2], dtype=np.float32))  # tags at z = 0
+    min2 = np.float32(radio.min_distance_m**2)
+    np.add(out, dz2, out=t)  # distance squared
+    if not np.all(dz2 >= min2):  # a receiver lower than the clamp distance: clamp
+        np.maximum(t, min2, out=t)
     if radio.front_back_db > 0.0:
         # 0.5 fb (cos(bearing - yaw) cos(elev) - cos(elev))
-        #   = 0.5 fb (dx sin(yaw) + dy cos(yaw) - horizontal) / distance
+        #   = (dx k sin(yaw) + dy k cos(yaw) - k horizontal) / distance,  k = fb / 2
+        k = np.float32(0.5 * radio.front_back_db)
         yaw = np.asarray(rx_yaw_rad, dtype=np.float32)
-        dx *= np.sin(yaw)
-        dy *= np.cos(yaw)
+        dx *= k * np.sin(yaw)
+        dy *= k * np.cos(yaw)
         dx += dy
         np.sqrt(out, out=out)
+        out *= k
         dx -= out
         np.sqrt(t, out=dy)
         dx /= dy
-        dx *= np.float32(0.5 * radio.front_back_db)
     # p0 - 10 n log10(distance / d0) = p0 + 10 n log10(d0) - 5 n log10(distance^2)
     np.log10(t, out=out)
     out *= np.float32(-5.0 * radio.path_loss_exponent)

@@ -111,7 +111,8 @@ def rollout_gains(
     grid_shape = (min(chunk, steps), n_tags, n_act, 1, n_pad)
     power = ws.get("power", grid_shape)
     log_pd = ws.get("log_pd", grid_shape)
-    coef = ws.get("coef", (grid_shape[0], n_tags, n_act, 2, n_pad))  # likelihood_coefficients
+    # MC rollouts share each action's grid: their likelihoods are one matrix product each
+    coef = ws.get("coef", (grid_shape[0], n_tags, n_act, 2, n_pad)) if n_roll > 1 else None
     grid_scratch = [ws.get(f"grid{j}", grid_shape) for j in range(3)]
     lut_scratch = (ws.get("lut_f", grid_shape), ws.get("lut_i", grid_shape, np.int32))
     timing["predict"] += t1 - t0
@@ -138,8 +139,9 @@ def rollout_gains(
                        [g[:c] for g in grid_scratch])
             table.log_pd(power[:c], out=log_pd[:c], scratch=(lut_scratch[0][:c],
                                                               lut_scratch[1][:c]))
-            likelihood_coefficients(power[:c, ..., 0, :], log_pd[:c, ..., 0, :],
-                                    radio.noise_var, out=coef[:c])
+            if coef is not None:
+                likelihood_coefficients(power[:c, ..., 0, :], log_pd[:c, ..., 0, :],
+                                        radio.noise_var, out=coef[:c])
             t_grid = clock()
             update_s += t_grid - t2
             t2 = t_grid
@@ -159,7 +161,7 @@ def rollout_gains(
         t3 = clock()
         # 3. update: log_w_next <- posterior log-weights, w <- posterior weights
         log_likelihood(meas.z_db, meas.detected, power[j], log_pd[j], table, radio.noise_var,
-                       out=log_w_next, coef=coef[j])
+                       out=log_w_next, coef=None if coef is None else coef[j])
         post = bayes_update(log_w, log_w_next, out_weights=w)
         t4 = clock()
         # 4. reward
