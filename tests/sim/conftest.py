@@ -12,8 +12,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from mav_helpers import open_client
-from sim_helpers import DEMO_MISSION, SimFactory, SimProcess, free_udp_port, start_sim
+
+from tests.sim.mav_helpers import open_client
+from tests.sim.sim_helpers import DEMO_MISSION, SimFactory, SimProcess, free_udp_port, start_sim
 
 
 @pytest.fixture

@@ -6,7 +6,8 @@ import time
 from typing import Any
 
 from pymavlink import mavutil
-from sim_helpers import SimFactory, SimProcess
+
+from tests.sim.sim_helpers import SimFactory, SimProcess
 
 mavutil.set_dialect("common")  # MAVLink 2: sim_helpers sets MAVLINK20=1, read here
 M = mavutil.mavlink

@@ -1,6 +1,6 @@
 """Helpers for the simulator tests: free ports, mission files, the simulator subprocess.
 
-Imported by the tests as ``sim_helpers`` (pytest puts this directory on sys.path).
+Imported by the tests as ``tests.sim.sim_helpers`` (the test folders are packages).
 Ports: a test may bind its own receiving sockets on port 0 and pass their ports in (no race);
 for MAVSDK, which binds itself, ``free_udp_port()`` picks one.
 """

@@ -18,9 +18,9 @@ from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, VelocityNedYaw
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync
-from sim_helpers import SimFactory, free_udp_port
 
 from sim.truth import read_truth
+from tests.sim.sim_helpers import SimFactory, free_udp_port
 
 pytestmark = pytest.mark.e2e
 

@@ -14,12 +14,12 @@ import time
 from typing import Any
 
 import pytest
-from mav_helpers import command, start, wait_for
 from pymavlink import mavutil
-from sim_helpers import SimFactory, udp_socket
 
 from mexgen_gcs.core.geo import LocalFrame
 from sim.truth import read_truth
+from tests.sim.mav_helpers import command, start, wait_for
+from tests.sim.sim_helpers import SimFactory, udp_socket
 
 M = mavutil.mavlink
 

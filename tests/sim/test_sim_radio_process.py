@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sim_helpers import SimFactory, udp_socket, write_mission
 
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.io.wire import Detection, Heartbeat, decode
 from sim.truth import read_truth
+from tests.sim.sim_helpers import SimFactory, udp_socket, write_mission
 
 SPEEDUP = 20.0
 TAGS = [{"id": "NEAR", "freq_hz": 150_100_000}, {"id": "MID", "freq_hz": 150_200_000},

@@ -16,13 +16,13 @@ import time
 from typing import Any
 
 import pytest
-from mav_helpers import command, start, wait_for
 from pymavlink import mavutil
 from pymavlink.dialects.v10 import common as mavlink1
 from pymavlink.dialects.v20 import ardupilotmega
-from sim_helpers import SimFactory
 
 from sim.truth import read_truth
+from tests.sim.mav_helpers import command, start, wait_for
+from tests.sim.sim_helpers import SimFactory
 
 M = mavutil.mavlink
 WILD_FLOATS = [math.nan, math.inf, -math.inf, 0.0, -1.0, 1e38, -1e38, 1.0, 21196.0, 129.0,
@@ -162,7 +162,7 @@ def test_bad_flags_exit_2(bad_args: list[str]) -> None:
     import subprocess
     import sys
 
-    from sim_helpers import DEMO_MISSION, REPO
+    from tests.sim.sim_helpers import DEMO_MISSION, REPO
 
     done = subprocess.run([sys.executable, "-m", "sim", str(DEMO_MISSION), *bad_args],
                           cwd=REPO, capture_output=True, text=True, timeout=30)
@@ -174,7 +174,7 @@ def test_bad_mission_exits_2(tmp_path: Any) -> None:
     import subprocess
     import sys
 
-    from sim_helpers import REPO
+    from tests.sim.sim_helpers import REPO
 
     bad = tmp_path / "bad.yaml"
     bad.write_text("version: 1\nname: x\n")

@@ -6,10 +6,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from mav_helpers import M, client_port, command, open_client, wait_for
-from sim_helpers import SimFactory, udp_socket, write_mission
-
 from mexgen_gcs.io.wire import Heartbeat, decode
+from tests.sim.mav_helpers import M, client_port, command, open_client, wait_for
+from tests.sim.sim_helpers import SimFactory, udp_socket, write_mission
 
 
 def radio_listening(sock: Any, seconds: float) -> set[tuple[str, ...]]:
