@@ -175,6 +175,7 @@ class MissionController:
         await self._preflight_checks(tel)
         if m.safety.upload_geofence:
             await self._upload_geofence()
+        self._operator_before_arming()
         self.state = "takeoff"
         await self.vehicle.arm()
         self.event("armed")
@@ -209,6 +210,18 @@ class MissionController:
                 flight.create_task(self._operator(), name="operator")
         except* _MissionOver:
             pass
+
+    def _operator_before_arming(self) -> None:
+        """An abort or RTL asked for before arming ends the mission on the ground."""
+        while not self.commands.empty():
+            cmd = self.commands.get_nowait()
+            self.event("operator_command", command=cmd)
+            if cmd in ("abort", "rtl", "land"):
+                self.end_reason = f"operator_{cmd}"
+                self.event("mission_end", reason=self.end_reason, armed=False)
+                raise _MissionOver
+            if cmd.startswith("method:") and cmd.split(":", 1)[1] in ("mexgen", "pim", "mc"):
+                self.method = cmd.split(":", 1)[1]
 
     async def _preflight_checks(self, tel: Telemetry) -> None:
         e, n, _ = self.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg, tel.home_abs_alt_m)

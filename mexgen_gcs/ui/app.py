@@ -10,9 +10,10 @@ handed what they show and never reach into the app. Map frame: local ENU metres 
 from __future__ import annotations
 
 import asyncio
+import gc
 import logging
 from collections.abc import Sequence
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from textual import on, work
 from textual.app import App, ComposeResult
@@ -36,6 +37,9 @@ from mexgen_gcs.ui.terminal_driver import nonblocking_driver_class
 from mexgen_gcs.ui.terminal_logging import terminal_logging_held
 from mexgen_gcs.ui.warning_banner import WarningBanner
 
+if TYPE_CHECKING:
+    from mexgen_gcs.mission.controller import MissionController, MissionResult
+
 log = logging.getLogger(__name__)
 
 MISSION_ACTIONS = frozenset({"pause", "resume", "rtl", "land", "abort", "method"})
@@ -46,7 +50,11 @@ DANGEROUS = {
 }
 #: states in which the vehicle may be in the air and quitting must bring it home first
 PRE_FLIGHT = ("connecting", "preflight")
+#: states in which the mission no longer takes commands (the vehicle is returning or down)
+MISSION_OVER = ("returning", "landed", "done")
 DEFAULT_LINGER_S = 10.0
+#: wall seconds after the UI starts when its objects are frozen out of the cyclic GC
+FREEZE_AFTER_S = 2.0
 
 
 class MexgenApp(App[None]):
@@ -137,6 +145,8 @@ class MexgenApp(App[None]):
 
     def show_snapshot(self, snap: MissionSnapshot) -> None:
         """Hand each panel its part of one snapshot."""
+        if self.snapshot is None or snap.state != self.snapshot.state:
+            self.call_after_refresh(self.refresh_bindings)
         self.snapshot = snap
         self.status_bar.show(snap)
         self.banner.show(snap.warnings, self._notice())
@@ -196,7 +206,8 @@ class MexgenApp(App[None]):
         if action in MISSION_ACTIONS:
             if not live:
                 return False
-            return None if (self.ended or self.quit_requested) else True
+            over = self.snapshot is not None and self.snapshot.state in MISSION_OVER
+            return None if (self.ended or self.quit_requested or over) else True
         if action == "replay":
             return not live
         if action == "truth":
@@ -309,9 +320,9 @@ def build_app(source: SnapshotSource, *, linger_s: float | None = DEFAULT_LINGER
     return MexgenApp(source, linger_s=linger_s)
 
 
-async def run_with_ui(controller: Any, *, headless: bool = False,
+async def run_with_ui(controller: MissionController, *, headless: bool = False,
                       size: tuple[int, int] | None = None, auto_pilot: Any = None,
-                      linger_s: float | None = DEFAULT_LINGER_S) -> Any:
+                      linger_s: float | None = DEFAULT_LINGER_S) -> MissionResult:
     """Fly `controller.run()` with the UI attached; returns its MissionResult.
 
     The mission and the UI are two tasks of one TaskGroup in the running loop. The UI task
@@ -323,12 +334,19 @@ async def run_with_ui(controller: Any, *, headless: bool = False,
     app = build_app(source, linger_s=linger_s)
 
     async def view() -> None:
+        # Once the UI is up, its thousands of long-lived objects (widgets, styles, caches)
+        # are frozen out of the cyclic collector: full collections then stay short instead
+        # of stalling the shared loop for hundreds of milliseconds.
+        freeze = asyncio.get_running_loop().call_later(FREEZE_AFTER_S, gc.freeze)
         try:
             with terminal_logging_held():
                 await app.run_async(headless=headless, size=size, auto_pilot=auto_pilot)
         except Exception as exc:  # the view must never take the mission down
             log.error("terminal UI failed (%s: %s); the mission continues without it",
                       type(exc).__name__, exc)
+        finally:
+            freeze.cancel()
+            gc.unfreeze()
         if not over.is_set():
             log.warning("the terminal UI closed before the mission ended; it continues "
                         "headless (Ctrl+C aborts: return to launch)")

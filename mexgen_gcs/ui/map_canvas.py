@@ -135,12 +135,23 @@ class BrailleCanvas:
         self.style[cell_r, cell_c] = self.style_index(style)
         return np.stack([cell_r, cell_c], axis=1)
 
-    def line(self, c0: float, r0: float, c1: float, r1: float, style: str) -> None:
-        n = int(max(abs(c1 - c0), abs(r1 - r0))) + 2
-        if n > 20_000:  # a segment far off-screen at high zoom: sample coarsely, cheaply
-            n = 20_000
-        t = np.linspace(0.0, 1.0, n)
-        self.plot(c0 + (c1 - c0) * t, r0 + (r1 - r0) * t, style)
+    def polyline(self, col: np.ndarray, row: np.ndarray, style: str) -> None:
+        """Connect consecutive dot coordinates (N,) with lines, in one vectorised plot."""
+        col = np.asarray(col, dtype=float)
+        row = np.asarray(row, dtype=float)
+        if len(col) < 2:
+            self.plot(col, row, style)
+            return
+        # one sample per dot along each segment; a far off-screen segment at high zoom is
+        # clipped to a generous box first so the sample count stays bounded
+        lim_c, lim_r = 4.0 * self.width * DOTS_X, 4.0 * self.height * DOTS_Y
+        col = np.clip(col, -lim_c, lim_c)
+        row = np.clip(row, -lim_r, lim_r)
+        n = (np.maximum(np.abs(np.diff(col)), np.abs(np.diff(row))) + 2).astype(np.int64)
+        seg = np.repeat(np.arange(len(n)), n)
+        start = np.repeat(np.cumsum(n) - n, n)
+        t = (np.arange(len(seg)) - start) / np.repeat(np.maximum(n - 1, 1), n)
+        self.plot(col[seg] + np.diff(col)[seg] * t, row[seg] + np.diff(row)[seg] * t, style)
 
     def put_text(self, row: int, col: int, s: str, style: str) -> None:
         """Write characters over the dots (clipped to the canvas)."""
@@ -148,29 +159,34 @@ class BrailleCanvas:
             if 0 <= row < self.height and 0 <= col + i < self.width:
                 self.text[(row, col + i)] = (ch, style)
 
-    def rows(self) -> list[Text]:
-        """Rich Text per row, runs of one style merged."""
-        out: list[Text] = []
+    def runs(self) -> list[list[tuple[str, str]]]:
+        """Per row, (characters, style) runs with one style each ("" = plain)."""
+        chars = np.where(self.dots > 0, self.dots.astype(np.int32) + _BRAILLE_BASE, 0x20)
+        style = np.where(self.dots > 0, self.style, -1)
+        out: list[list[tuple[str, str]]] = []
         for r in range(self.height):
-            line = Text(no_wrap=True, overflow="crop")
-            run: list[str] = []
-            run_style = ""
-            for c in range(self.width):
-                if (r, c) in self.text:
-                    ch, st = self.text[(r, c)]
-                else:
-                    bits = int(self.dots[r, c])
-                    ch = chr(_BRAILLE_BASE + bits) if bits else " "
-                    idx = int(self.style[r, c])
-                    st = self.styles[idx] if (bits and idx >= 0) else ""
-                if st != run_style and run:
-                    line.append("".join(run), style=run_style or None)
-                    run = []
-                run_style = st
-                run.append(ch)
-            if run:
-                line.append("".join(run), style=run_style or None)
+            row_chars = [chr(c) for c in chars[r].tolist()]
+            row_styles = [self.styles[i] if i >= 0 else "" for i in style[r].tolist()]
+            for (tr, tc), (ch, st) in self.text.items():
+                if tr == r:
+                    row_chars[tc], row_styles[tc] = ch, st
+            line: list[tuple[str, str]] = []
+            start = 0
+            for c in range(1, self.width + 1):
+                if c == self.width or row_styles[c] != row_styles[start]:
+                    line.append(("".join(row_chars[start:c]), row_styles[start]))
+                    start = c
             out.append(line)
+        return out
+
+    def rows(self) -> list[Text]:
+        """Rich Text per row (for tests and anything printing the map)."""
+        out: list[Text] = []
+        for line in self.runs():
+            text = Text(no_wrap=True, overflow="crop")
+            for chunk, st in line:
+                text.append(chunk, style=st or None)
+            out.append(text)
         return out
 
 
@@ -212,10 +228,15 @@ def tag_style(index: int) -> str:
 
 def draw_map(scene: MapScene, view: Viewport, width_cells: int, height_cells: int, *,
              show_truth: bool = False) -> list[Text]:
+    """`draw_canvas` as Rich Text, one per row of `width_cells` characters."""
+    return draw_canvas(scene, view, width_cells, height_cells, show_truth=show_truth).rows()
+
+
+def draw_canvas(scene: MapScene, view: Viewport, width_cells: int, height_cells: int, *,
+                show_truth: bool = False) -> BrailleCanvas:
     """Render a scene: area, track, particle clouds, ellipses, tags, home, vehicle, labels.
 
     Layers are drawn back to front; where layers share a cell the later one sets its colour.
-    Returns `height_cells` rows of `width_cells` characters.
     """
     w, h = max(width_cells, 1), max(height_cells, 1)
     canvas = BrailleCanvas(w, h)
@@ -230,9 +251,7 @@ def draw_map(scene: MapScene, view: Viewport, width_cells: int, height_cells: in
 
     # search area outline
     if len(scene.area_en_m) >= 2:
-        c, r = dots(np.array(scene.area_en_m + scene.area_en_m[:1]))
-        for i in range(len(c) - 1):
-            canvas.line(c[i], r[i], c[i + 1], r[i + 1], "grey62")
+        canvas.polyline(*dots(np.array(scene.area_en_m + scene.area_en_m[:1])), "grey62")
     # particle clouds: dense cells in bold
     for i, tag in enumerate(scene.tags):
         if not tag.cloud_en_m:
@@ -247,29 +266,23 @@ def draw_map(scene: MapScene, view: Viewport, width_cells: int, height_cells: in
                     f"bold {tag_style(i)}")
     # vehicle track
     if len(scene.track_en_m) >= 2:
-        c, r = dots(np.array(scene.track_en_m))
-        for i in range(len(c) - 1):
-            canvas.line(c[i], r[i], c[i + 1], r[i + 1], "white")
+        canvas.polyline(*dots(np.array(scene.track_en_m)), "white")
     # estimate ellipses
     for i, tag in enumerate(scene.tags):
         if not (math.isfinite(tag.east_m) and math.isfinite(tag.north_m)):
             continue
         pts = ellipse_points(tag.east_m, tag.north_m, tag.cov_pos_m2)
         if len(pts):
-            c, r = dots(pts)
-            c = np.append(c, c[0])
-            r = np.append(r, r[0])
-            for j in range(len(c) - 1):
-                canvas.line(c[j], r[j], c[j + 1], r[j + 1], f"bold {tag_style(i)}")
+            canvas.polyline(*dots(np.vstack([pts, pts[:1]])), f"bold {tag_style(i)}")
     # planned heading: a ray of 6 cells from the vehicle
     if scene.vehicle_en_m is not None and scene.heading_deg is not None:
         ve, vn = scene.vehicle_en_m
         if math.isfinite(ve) and math.isfinite(vn):
             length_m = 6 * DOTS_X * view.m_per_dot
             rad = math.radians(scene.heading_deg)
-            c, r = dots(np.array([[ve, vn], [ve + length_m * math.sin(rad),
-                                              vn + length_m * math.cos(rad)]]))
-            canvas.line(c[0], r[0], c[1], r[1], "bold bright_white")
+            canvas.polyline(*dots(np.array([[ve, vn], [ve + length_m * math.sin(rad),
+                                                       vn + length_m * math.cos(rad)]])),
+                            "bold bright_white")
     # labels: tag estimates (marked when localised), truth, home, vehicle last (on top)
     for i, tag in enumerate(scene.tags):
         st = tag_style(i)
@@ -298,4 +311,4 @@ def draw_map(scene: MapScene, view: Viewport, width_cells: int, height_cells: in
     label, cells = scale_bar(view.m_per_dot, w)
     canvas.put_text(h - 1, 1, "├" + "─" * max(cells - 2, 0) + "┤", "bold")
     canvas.put_text(h - 1, 1 + max(cells, 2) + 1, label, "bold")
-    return canvas.rows()
+    return canvas

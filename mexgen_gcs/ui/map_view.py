@@ -7,14 +7,17 @@ Frame: local ENU metres about home, north up. The widget keeps only what it was 
 from __future__ import annotations
 
 import math
+from typing import Self
 
 import numpy as np
-from rich.console import RenderableType
-from rich.text import Text
+from rich.segment import Segment
+from rich.style import Style
+from textual.geometry import Region
+from textual.strip import Strip
 from textual.widget import Widget
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
-from mexgen_gcs.ui.map_canvas import MapScene, MapTag, Viewport, draw_map, fit_viewport
+from mexgen_gcs.ui.map_canvas import MapScene, MapTag, Viewport, draw_canvas, fit_viewport
 
 ZOOM_STEP = 1.5
 ZOOM_MIN = 0.25
@@ -26,6 +29,7 @@ class MapView(Widget):
     """A braille map of one MapScene; zoom, pan and the truth overlay are its own state."""
 
     def __init__(self, *, id: str | None = None, classes: str | None = None) -> None:
+        self._lines: list[Strip] | None = None
         super().__init__(id=id, classes=classes)
         self.scene = MapScene()
         self.zoom_factor = 1.0
@@ -100,10 +104,23 @@ class MapView(Widget):
         return Viewport(base.centre_e_m + self.pan_en_m[0], base.centre_n_m + self.pan_en_m[1],
                         base.m_per_dot / self.zoom_factor)
 
-    def render(self) -> RenderableType:
+    def refresh(self, *regions: Region, repaint: bool = True, layout: bool = False,
+                recompose: bool = False) -> Self:
+        self._lines = None  # whatever changed, draw the canvas again
+        return super().refresh(*regions, repaint=repaint, layout=layout, recompose=recompose)
+
+    def on_resize(self) -> None:
+        self.refresh()
+
+    def render_line(self, y: int) -> Strip:
+        """Line API: the canvas is drawn once per change and handed out row by row."""
         w, h = self._cells()
-        rows = draw_map(self.scene, self.viewport(), w, h, show_truth=self.show_truth)
-        return Text("\n").join(rows)
+        if self._lines is None or len(self._lines) != h:
+            canvas = draw_canvas(self.scene, self.viewport(), w, h, show_truth=self.show_truth)
+            self._lines = [
+                Strip([Segment(chunk, Style.parse(st) if st else None) for chunk, st in row], w)
+                for row in canvas.runs()]
+        return self._lines[y] if 0 <= y < len(self._lines) else Strip.blank(w)
 
 
 def scene_from_snapshot(snap: MissionSnapshot) -> MapScene:

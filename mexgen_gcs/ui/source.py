@@ -52,13 +52,11 @@ class LiveSource:
     def __init__(self, controller: Any, mission_over: asyncio.Event) -> None:
         self._controller = controller
         self._over = mission_over
-        self.sent: list[str] = []
 
     def command(self, cmd: str) -> None:
         if cmd not in MISSION_COMMANDS and not (
                 cmd.startswith("method:") and cmd.split(":", 1)[1] in METHODS):
             raise ValueError(f"unknown mission command {cmd!r}")
-        self.sent.append(cmd)
         self._controller.request(cmd)
 
     async def snapshots(self) -> AsyncIterator[MissionSnapshot]:

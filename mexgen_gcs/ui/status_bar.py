@@ -66,7 +66,8 @@ class StatusBar(Widget):
 
     def show(self, snap: MissionSnapshot) -> None:
         self.snapshot = snap
-        self.refresh(layout=True)
+        lines = status_text(snap, self.content_size.width).plain.count("\n") + 1
+        self.refresh(layout=lines != self.content_size.height)  # a re-layout only if needed
 
     def on_resize(self) -> None:
         self.refresh(layout=True)

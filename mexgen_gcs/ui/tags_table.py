@@ -55,6 +55,7 @@ class TagsTable(DataTable[Text]):
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)
         self.tags: tuple[TagView, ...] = ()
+        self._shown: dict[str, tuple[Text, ...]] = {}
 
     def on_mount(self) -> None:
         for name in COLUMNS:
@@ -62,14 +63,16 @@ class TagsTable(DataTable[Text]):
 
     def show(self, tags: Sequence[TagView]) -> None:
         self.tags = tuple(tags)
-        keys = {str(k.value) for k in self.rows}
         for tag in self.tags:
             cells = tag_row(tag)
-            if tag.tag_id in keys:
-                for name, cell in zip(COLUMNS, cells, strict=True):
-                    self.update_cell(tag.tag_id, name, cell)
-            else:
+            shown = self._shown.get(tag.tag_id)
+            if shown is None:
                 self.add_row(*cells, key=tag.tag_id)
+            else:
+                for name, cell, old in zip(COLUMNS, cells, shown, strict=True):
+                    if cell != old:  # only what changed
+                        self.update_cell(tag.tag_id, name, cell)
+            self._shown[tag.tag_id] = cells
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
         event.stop()

@@ -29,6 +29,8 @@ class WarningBanner(Widget):
             self.toggle_class("-blink")
 
     def show(self, warnings: tuple[str, ...], notice: str | None = None) -> None:
+        if tuple(warnings) == self.warnings and notice == self.notice:
+            return  # unchanged: no repaint, no re-layout
         self.warnings = tuple(warnings)
         self.notice = notice
         self.set_class(bool(self.warnings), "-warning")

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from ui_helpers import make_snapshot
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
+from tests.ui.ui_helpers import make_snapshot
 
 
 @pytest.fixture

@@ -15,9 +15,9 @@ import time
 from dataclasses import replace
 
 from textual.drivers.linux_driver import LinuxDriver
-from ui_helpers import make_snapshot
 
 from mexgen_gcs.ui.app import MexgenApp
+from tests.ui.ui_helpers import make_snapshot
 
 
 class Churn:

@@ -7,7 +7,6 @@ from __future__ import annotations
 import re
 
 import pytest
-from ui_helpers import FakeSource, later, make_snapshot, screen_rows, screen_text, until
 
 from mexgen_gcs.ui.app import build_app
 from mexgen_gcs.ui.confirm_screen import ConfirmScreen
@@ -15,6 +14,7 @@ from mexgen_gcs.ui.map_view import MapView
 from mexgen_gcs.ui.method_screen import MethodScreen
 from mexgen_gcs.ui.tags_table import TagsTable
 from mexgen_gcs.ui.warning_banner import WarningBanner
+from tests.ui.ui_helpers import FakeSource, later, make_snapshot, screen_rows, screen_text, until
 
 SIZE = (120, 40)
 
@@ -254,3 +254,15 @@ async def test_events_are_appended_once():
         text = screen_text(app)
     assert text.count("offboard_started") == 1
     assert "safety action=hold" in text
+
+
+async def test_mission_commands_are_off_once_returning():
+    source, app, snap = await started()
+    async with app.run_test(size=SIZE) as pilot:
+        returning = later(snap, 1.0, state="returning", end_reason="battery_low")
+        source.push(returning)
+        await until(pilot, lambda: app.snapshot is returning)
+        await pilot.pause()
+        await pilot.press("p", "c", "r", "l", "a", "m")
+        await pilot.pause()
+        assert source.sent == [] and len(app.screen_stack) == 1

@@ -8,13 +8,13 @@ import time
 from dataclasses import replace
 
 import pytest
-from ui_helpers import make_snapshot, svg_rows, until
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
 from mexgen_gcs.ui.app import build_app, run_replay_async
 from mexgen_gcs.ui.replay_bar import ReplayBar
 from mexgen_gcs.ui.source import ReplaySource
 from mexgen_gcs.ui.status_bar import StatusBar
+from tests.ui.ui_helpers import make_snapshot, svg_rows, until
 
 
 def recording(n: int = 20, dt_s: float = 0.5) -> list[MissionSnapshot]:

@@ -7,9 +7,9 @@ from __future__ import annotations
 import re
 
 import pytest
-from ui_helpers import FakeSource, make_snapshot, svg_rows, until
 
 from mexgen_gcs.ui.app import build_app
+from tests.ui.ui_helpers import FakeSource, make_snapshot, svg_rows, until
 
 
 @pytest.mark.parametrize("size", [(120, 40), (80, 24)])

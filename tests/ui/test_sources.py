@@ -5,10 +5,10 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from ui_helpers import later, make_snapshot
 
 from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.ui.source import LiveSource
+from tests.ui.ui_helpers import later, make_snapshot
 
 
 class BusOnly:

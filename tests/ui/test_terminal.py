@@ -57,7 +57,7 @@ def _probe(mode: str, tmp_path: Path, seconds: float) -> dict | None:
     master, slave = pty.openpty()
     out = tmp_path / f"{mode}.json"
     env = {**os.environ, "TERM": "xterm-256color", "COLUMNS": "120", "LINES": "40",
-           "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")])}
+           "PYTHONPATH": os.pathsep.join([str(HERE.parents[1]), os.environ.get("PYTHONPATH", "")])}
     proc = subprocess.Popen([sys.executable, str(HERE / "slow_terminal_probe.py"), mode,
                              str(out), str(seconds)], stdin=slave, stdout=slave, stderr=slave,
                             env=env, start_new_session=True)

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import psutil
 import pytest
-from ui_helpers import screen_text, until
 
 from mexgen_gcs.io.flightlog import read_flight_log
 from mexgen_gcs.mission.run import SitlPorts, run_sitl
 from mexgen_gcs.ui import app as ui_app
 from mexgen_gcs.ui.confirm_screen import ConfirmScreen
+from tests.ui.ui_helpers import screen_text, until
 
 pytestmark = pytest.mark.e2e
 
