@@ -125,6 +125,7 @@ class MissionController:
         self.planner = MissionPlanner(mission)
         self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
         self._last_cloud_t = -math.inf
+        self._logged_rejects: dict[str, int] = {}
 
     # -- public ------------------------------------------------------------------------------
 
@@ -157,6 +158,7 @@ class MissionController:
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)
         self.state = "done"
+        self._log_rejects()
         self._publish()
         return self._result()
 
@@ -501,9 +503,20 @@ class MissionController:
         vs, _, _ = self._vehicle_state()
         return vs.xyz_m, vs.yaw_rad
 
+    def _log_rejects(self) -> None:
+        """Account for every rejected datagram in the log: per-reason deltas since the last
+        record (a flood of junk costs one line per second, not one per datagram)."""
+        now = dict(self.receiver.rejects)
+        delta = {k: v - self._logged_rejects.get(k, 0) for k, v in now.items()
+                 if v != self._logged_rejects.get(k, 0)}
+        if delta:
+            self.log.write("reject", t=self.clock.now(), counts=delta, total=now)
+            self._logged_rejects = now
+
     async def _telemetry_log(self) -> None:
         last_print = time.monotonic()
         while True:
+            self._log_rejects()
             tel = self.vehicle.hub.latest
             self.log.write("telemetry", t=self.clock.now(), lat=tel.lat_deg, lon=tel.lon_deg,
                            rel_alt_m=tel.rel_alt_m, v_north_m_s=tel.v_north_m_s,
@@ -574,13 +587,12 @@ class MissionController:
             warnings.append(f"HOLD: {self.hold_reason}")
         if len(self.track) and self.area.distance_outside_m(np.array(self.track[-1])) > 0:
             warnings.append("OUTSIDE SEARCH AREA")
-        stats = self.receiver.stats() if hasattr(self.receiver, "stats") else {}
+        stats = self.receiver.stats()
         return MissionSnapshot(
             t=t, elapsed_s=t - self.t_start, state=self.state, end_reason=self.end_reason,
             telemetry=tel, vehicle_en_m=(float(e), float(n)), track_en_m=tuple(self.track),
             tags=tuple(tags), plan=plan, radio_heartbeat_age_s=hb_age,
-            radio_accepted=int(stats.get("accepted", 0)) if isinstance(stats, dict) else 0,
-            radio_rejects=dict(getattr(self.receiver, "rejects", {})),
+            radio_accepted=stats.accepted, radio_rejects=dict(stats.rejects),
             warnings=tuple(warnings), events=tuple(self.events)[-20:], method=self.method,
             link_ok=tel.connected, area_en_m=tuple(map(tuple, self.area.vertices_m.tolist())))
 

@@ -76,6 +76,12 @@ def test_demo_mission_completes_under_hostile_datagrams(tmp_path):
         assert result.rejects.get(reason, 0) >= 1, (reason, result.rejects)
     log = read_flight_log(result.log_dir)
     assert {r["tag"] for r in log.of_type("detection")} <= {"T1", "T2", "T3", "T4"}
+    # every rejection is accounted for in the log: the logged deltas add up to the counters
+    logged: dict[str, int] = {}
+    for rec in log.of_type("reject"):
+        for reason, n in rec["counts"].items():
+            logged[reason] = logged.get(reason, 0) + n
+    assert logged == result.rejects
     kinds = _kinds(result.log_dir)
     assert "landed_and_disarmed" in kinds and kinds.count("tag_localised") == 4
     assert log.of_type("plan") and log.of_type("setpoint") and log.of_type("estimate")
