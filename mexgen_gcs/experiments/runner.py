@@ -162,7 +162,7 @@ def run_one(spec: RunSpec) -> RunResult:
                detections=detections)
     series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
               "trace_m2": trace_m2[:n]}
-    return RunResult(spec, row, {k: v.astype(np.float32) for k, v in series.items()})
+    return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()})
 
 
 def _num(x: float | None) -> str:

@@ -90,6 +90,8 @@ class Scenario:
     mc_rollouts: int = 8
     localised_radius_m: float = 50.0
     localised_confidence: float = 0.95
+    front_back_db: float = 3.0
+    """The receiver antenna's front-to-back ratio (core RadioModel; the mission default)."""
 
     @property
     def truth_motion(self) -> str:
@@ -166,6 +168,7 @@ def mission_yaml(sc: Scenario, method: str) -> str:
         "flight": {"alt_m": sc.alt_m, "speed_m_s": sc.speed_m_s,
                    "max_accel_m_s2": sc.max_accel_m_s2},
         "tags": tags,
+        "radio": {"front_back_db": sc.front_back_db},
         "receiver": {"pulse_period_s": sc.pulse_period_s},
         "filter": {
             "motion": sc.filter_motion,

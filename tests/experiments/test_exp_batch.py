@@ -167,7 +167,7 @@ def test_cli_killed_part_way_then_rerun(reference: Path, tmp_path: Path) -> None
 
 def test_cli_reports_bad_input_with_exit_2(tmp_path: Path,
                                            capsys: pytest.CaptureFixture[str]) -> None:
-    assert main([*ARGS[:5], "--methods", "pim,mc16", "--out", str(tmp_path)]) == 2
+    assert main([*ARGS[:4], "--methods", "pim,mc16", "--out", str(tmp_path)]) == 2
     assert "mc16" in capsys.readouterr().err
     assert main(["experiment", "localise", "--model", "rw", "--starts", "1", "--reps", "1",
                  "--methods", "pim", "--quick", "--workers", "1", "--out", str(tmp_path)]) == 0
