@@ -30,10 +30,10 @@ from mexgen_gcs.core.mission_core import MissionCore, PlanRequest, VehicleState
 from mexgen_gcs.errors import MexgenError, PlannerError, VehicleError
 from mexgen_gcs.io.clock import Clock
 from mexgen_gcs.io.vehicle import Telemetry, Vehicle, wait_until
-from mexgen_gcs.mission import safety
+from mexgen_gcs.mission import safety, views
 from mexgen_gcs.mission.guidance import Setpoint, velocity_setpoint
 from mexgen_gcs.mission.planning import MissionPlanner, PlanOutcome
-from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, SnapshotBus, TagView
+from mexgen_gcs.mission.snapshot import MissionSnapshot, SnapshotBus
 
 log = logging.getLogger(__name__)
 
@@ -537,64 +537,10 @@ class MissionController:
     # -- views -------------------------------------------------------------------------------
 
     def progress_line(self) -> str:
-        tel = self.vehicle.hub.latest
-        done = len(self.core.localised)
-        return (f"[{self.clock.now() - self.t_start:6.0f}s] {self.state:<10} "
-                f"mode={tel.flight_mode} "
-                f"alt={tel.rel_alt_m:5.1f}m speed={tel.ground_speed_m_s:4.1f}m/s "
-                f"bat={tel.battery_percent:4.0f}% localised={done}/{len(self.core.tag_ids)} "
-                f"heading={self.heading_deg if self.heading_deg is not None else '-'}")
+        return views.progress_line(self)
 
     def snapshot(self) -> MissionSnapshot:
-        t = self.clock.now()
-        tel = self.vehicle.hub.latest
-        truth = self.truth() if self.truth is not None else {}
-        tags = []
-        for spec in self.mission.tags:
-            tid = spec.id
-            est = self.core.filters[tid].estimate()
-            lat, lon, _ = self.frame.to_geodetic(est.mean[0], est.mean[1])
-            loc = self.core.localised.get(tid)
-            recent = sum(1 for x in self.det_times[tid] if t - x <= 60.0)
-            cloud = self.core.particle_cloud(tid, 150)
-            tags.append(TagView(
-                tag_id=tid, freq_hz=spec.freq_hz, existence=est.existence, lat_deg=float(lat),
-                lon_deg=float(lon), east_m=float(est.mean[0]), north_m=float(est.mean[1]),
-                radius_m=est.radius_m,
-                cov_pos_m2=(float(est.cov_pos[0, 0]), float(est.cov_pos[0, 1]),
-                            float(est.cov_pos[1, 1])),
-                localised=loc is not None,
-                localised_at_s=None if loc is None else loc.t - (self.t_airborne or self.t_start),
-                detections_last_min=recent, detections_total=self.core.detections[tid],
-                last_rssi_db=self.core.last_rssi_db.get(tid),
-                cloud_en_m=tuple(map(tuple, cloud.tolist())), truth_en_m=truth.get(tid)))
-        plan = None
-        if self.last_plan is not None:
-            p = self.last_plan
-            plan = PlanView(p.method, p.targets, p.headings_deg, p.rewards, p.chosen_heading_deg,
-                            p.timing_ms, max(self.next_plan_t - t, 0.0), p.t)
-        e, n, _ = self.frame.to_enu(tel.lat_deg, tel.lon_deg, tel.abs_alt_m)
-        warnings = []
-        if not tel.connected or self.vehicle.hub.age_s() > self.mission.safety.link_loss_timeout_s:
-            warnings.append("VEHICLE LINK LOST")
-        hb_age = t - self.last_heartbeat_t
-        if hb_age > self.mission.receiver.heartbeat_timeout_s:
-            warnings.append("RADIO SILENT")
-        if math.isfinite(tel.battery_percent) and (
-                tel.battery_percent < self.mission.safety.battery_rtl_percent + 10):
-            warnings.append(f"BATTERY {tel.battery_percent:.0f}%")
-        if self.hold_reason:
-            warnings.append(f"HOLD: {self.hold_reason}")
-        if len(self.track) and self.area.distance_outside_m(np.array(self.track[-1])) > 0:
-            warnings.append("OUTSIDE SEARCH AREA")
-        stats = self.receiver.stats()
-        return MissionSnapshot(
-            t=t, elapsed_s=t - self.t_start, state=self.state, end_reason=self.end_reason,
-            telemetry=tel, vehicle_en_m=(float(e), float(n)), track_en_m=tuple(self.track),
-            tags=tuple(tags), plan=plan, radio_heartbeat_age_s=hb_age,
-            radio_accepted=stats.accepted, radio_rejects=dict(stats.rejects),
-            warnings=tuple(warnings), events=tuple(self.events)[-20:], method=self.method,
-            link_ok=tel.connected, area_en_m=tuple(map(tuple, self.area.vertices_m.tolist())))
+        return views.build_snapshot(self)
 
     def _publish(self) -> None:
         try:
@@ -603,17 +549,4 @@ class MissionController:
             log.warning("snapshot failed: %s", exc)
 
     def _result(self) -> MissionResult:
-        reason = self.end_reason or "aborted"
-        ok = reason in ("all_localised", "follow_complete") and self.landed_ok
-        localised = {}
-        for tid, rec in self.core.localised.items():
-            lat, lon, _ = self.frame.to_geodetic(rec.estimate.mean[0], rec.estimate.mean[1])
-            localised[tid] = {"t": rec.t, "after_s": rec.t - (self.t_airborne or self.t_start),
-                              "lat": float(lat), "lon": float(lon),
-                              "east_m": float(rec.estimate.mean[0]),
-                              "north_m": float(rec.estimate.mean[1]),
-                              "radius_m": rec.estimate.radius_m}
-        return MissionResult(
-            end_reason=reason, exit_code=0 if ok else 1, localised=localised,
-            duration_s=self.clock.now() - self.t_start,
-            rejects=dict(getattr(self.receiver, "rejects", {})), events=list(self.events))
+        return views.build_result(self)

@@ -1,0 +1,98 @@
+"""Views of a running mission: the published snapshot, the headless progress line and the
+final result. Pure reads of the controller's state (the controller owns that state).
+
+Frames: ENU metres about home for the map, WGS84 for display positions.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, TagView
+
+if TYPE_CHECKING:
+    from mexgen_gcs.mission.controller import MissionController, MissionResult
+
+
+def progress_line(c: MissionController) -> str:
+    tel = c.vehicle.hub.latest
+    done = len(c.core.localised)
+    return (f"[{c.clock.now() - c.t_start:6.0f}s] {c.state:<10} "
+            f"mode={tel.flight_mode} "
+            f"alt={tel.rel_alt_m:5.1f}m speed={tel.ground_speed_m_s:4.1f}m/s "
+            f"bat={tel.battery_percent:4.0f}% localised={done}/{len(c.core.tag_ids)} "
+            f"heading={c.heading_deg if c.heading_deg is not None else '-'}")
+
+
+def build_snapshot(c: MissionController) -> MissionSnapshot:
+    t = c.clock.now()
+    tel = c.vehicle.hub.latest
+    truth = c.truth() if c.truth is not None else {}
+    tags = []
+    for spec in c.mission.tags:
+        tid = spec.id
+        est = c.core.filters[tid].estimate()
+        lat, lon, _ = c.frame.to_geodetic(est.mean[0], est.mean[1])
+        loc = c.core.localised.get(tid)
+        recent = sum(1 for x in c.det_times[tid] if t - x <= 60.0)
+        cloud = c.core.particle_cloud(tid, 150)
+        tags.append(TagView(
+            tag_id=tid, freq_hz=spec.freq_hz, existence=est.existence, lat_deg=float(lat),
+            lon_deg=float(lon), east_m=float(est.mean[0]), north_m=float(est.mean[1]),
+            radius_m=est.radius_m,
+            cov_pos_m2=(float(est.cov_pos[0, 0]), float(est.cov_pos[0, 1]),
+                        float(est.cov_pos[1, 1])),
+            localised=loc is not None,
+            localised_at_s=None if loc is None else loc.t - (c.t_airborne or c.t_start),
+            detections_last_min=recent, detections_total=c.core.detections[tid],
+            last_rssi_db=c.core.last_rssi_db.get(tid),
+            cloud_en_m=tuple(map(tuple, cloud.tolist())), truth_en_m=truth.get(tid)))
+    plan = None
+    if c.last_plan is not None:
+        p = c.last_plan
+        plan = PlanView(p.method, p.targets, p.headings_deg, p.rewards, p.chosen_heading_deg,
+                        p.timing_ms, max(c.next_plan_t - t, 0.0), p.t)
+    e, n, _ = c.frame.to_enu(tel.lat_deg, tel.lon_deg, tel.abs_alt_m)
+    warnings = []
+    if not tel.connected or c.vehicle.hub.age_s() > c.mission.safety.link_loss_timeout_s:
+        warnings.append("VEHICLE LINK LOST")
+    hb_age = t - c.last_heartbeat_t
+    if hb_age > c.mission.receiver.heartbeat_timeout_s:
+        warnings.append("RADIO SILENT")
+    if math.isfinite(tel.battery_percent) and (
+            tel.battery_percent < c.mission.safety.battery_rtl_percent + 10):
+        warnings.append(f"BATTERY {tel.battery_percent:.0f}%")
+    if c.hold_reason:
+        warnings.append(f"HOLD: {c.hold_reason}")
+    if len(c.track) and c.area.distance_outside_m(np.array(c.track[-1])) > 0:
+        warnings.append("OUTSIDE SEARCH AREA")
+    stats = c.receiver.stats()
+    return MissionSnapshot(
+        t=t, elapsed_s=t - c.t_start, state=c.state, end_reason=c.end_reason,
+        telemetry=tel, vehicle_en_m=(float(e), float(n)), track_en_m=tuple(c.track),
+        tags=tuple(tags), plan=plan, radio_heartbeat_age_s=hb_age,
+        radio_accepted=stats.accepted, radio_rejects=dict(stats.rejects),
+        warnings=tuple(warnings), events=tuple(c.events)[-20:], method=c.method,
+        link_ok=tel.connected, area_en_m=tuple(map(tuple, c.area.vertices_m.tolist())))
+
+
+def build_result(c: MissionController) -> MissionResult:
+    reason = c.end_reason or "aborted"
+    ok = reason in ("all_localised", "follow_complete") and c.landed_ok
+    localised = {}
+    for tid, rec in c.core.localised.items():
+        lat, lon, _ = c.frame.to_geodetic(rec.estimate.mean[0], rec.estimate.mean[1])
+        localised[tid] = {"t": rec.t, "after_s": rec.t - (c.t_airborne or c.t_start),
+                          "lat": float(lat), "lon": float(lon),
+                          "east_m": float(rec.estimate.mean[0]),
+                          "north_m": float(rec.estimate.mean[1]),
+                          "radius_m": rec.estimate.radius_m}
+    from mexgen_gcs.mission.controller import MissionResult
+
+    return MissionResult(
+        end_reason=reason, exit_code=0 if ok else 1, localised=localised,
+        duration_s=c.clock.now() - c.t_start,
+        rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events))
