@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import contextlib
 import copy
 import json
 import logging
@@ -20,6 +19,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -128,10 +128,7 @@ async def fly_mission(
                 mission, vehicle, receiver, clock, core, flight_log, method=method,
                 rng=rng.spawn(1)[0], connect_url=connect_url, options=options,
                 truth=truth.positions if truth is not None else None)
-            loop = asyncio.get_running_loop()
-            with contextlib.suppress(NotImplementedError, RuntimeError):
-                loop.add_signal_handler(signal.SIGINT, controller.request, "abort")
-                loop.add_signal_handler(signal.SIGTERM, controller.request, "abort")
+            signals = _abort_on_signals(controller)
             try:
                 run_with_ui = _ui_runner() if ui else None
                 if run_with_ui is not None:
@@ -139,15 +136,26 @@ async def fly_mission(
                 else:
                     result = await controller.run()
             finally:
-                with contextlib.suppress(NotImplementedError, RuntimeError):
-                    loop.remove_signal_handler(signal.SIGINT)
-                    loop.remove_signal_handler(signal.SIGTERM)
+                for sig in signals:
+                    asyncio.get_running_loop().remove_signal_handler(sig)
                 await vehicle.close()
             result.log_dir = str(log_dir)
             flight_log.write("result", t=clock.now(), end_reason=result.end_reason,
                              exit_code=result.exit_code, localised=result.localised,
                              rejects=result.rejects, duration_s=result.duration_s)
     return result
+
+
+def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
+    """SIGINT/SIGTERM ask the mission to abort (return to launch, then exit). Only possible in
+    the main thread on POSIX; elsewhere (a batch of flights in worker threads) none are set."""
+    if sys.platform == "win32" or threading.current_thread() is not threading.main_thread():
+        return []
+    loop = asyncio.get_running_loop()
+    sigs = [signal.SIGINT, signal.SIGTERM]
+    for sig in sigs:
+        loop.add_signal_handler(sig, controller.request, "abort")
+    return sigs
 
 
 def _ui_runner() -> Any:

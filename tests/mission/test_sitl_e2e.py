@@ -154,3 +154,38 @@ def test_bad_mission_exits_2_before_anything_moves(tmp_path):
     assert proc.returncode == 2
     assert "bad.yaml" in proc.stderr and "kind" in proc.stderr
     assert not (tmp_path / "flights").exists()  # no log, no simulator, no motors
+
+
+def test_sigint_returns_to_launch_then_exits(tmp_path):
+    """Ctrl-C during the search: return to launch, land, exit 1, no simulator left behind."""
+    import signal
+
+    import psutil
+
+    out = tmp_path / "flights"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mexgen_gcs", "sitl", str(MISSIONS / "demo.yaml"), "--headless",
+         "--speedup", "10", "--mavlink-port", "0", "--radio-port", "0", "--log-dir", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    children = []
+    try:
+        deadline = time.monotonic() + 60
+        started = False
+        while time.monotonic() < deadline and not started:
+            time.sleep(0.5)
+            logs = list(out.glob("*/flight.jsonl"))
+            started = bool(logs) and "offboard_started" in logs[0].read_text()
+        assert started, "the mission never reached offboard"
+        children = psutil.Process(proc.pid).children(recursive=True)
+        time.sleep(2.0)
+        proc.send_signal(signal.SIGINT)
+        stdout, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 1
+    assert "operator_abort" in stdout
+    kinds = [r.get("kind") for r in read_flight_log(next(out.iterdir())).records
+             if r["type"] == "event"]
+    assert kinds.index("rtl_commanded") < kinds.index("landed_and_disarmed")
+    assert all(not c.is_running() or c.status() == psutil.STATUS_ZOMBIE for c in children)
