@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.motion import ModeArray, MotionModel
@@ -83,7 +82,8 @@ class FilterConfig:
     def radius_from_trace(self, trace_pos_m2: float) -> float:
         """Uncertainty radius (m) at the configured confidence, treating the position
         covariance as isotropic with the same trace: r = sqrt(chi2_2(conf) * tr / 2)."""
-        return math.sqrt(chi2.ppf(self.localised_confidence, 2) * max(trace_pos_m2, 0.0) / 2.0)
+        # the chi-square quantile with 2 degrees of freedom is -2 ln(1 - p), exactly
+        return math.sqrt(-math.log1p(-self.localised_confidence) * max(trace_pos_m2, 0.0))
 
 
 @dataclass(frozen=True, slots=True)

@@ -194,6 +194,19 @@ def _transition_for(matrix: tuple[tuple[float, ...], ...], steps: float) -> Floa
     return cum
 
 
+@lru_cache(maxsize=64)
+def _turn_tables(turn_rate_rad_s: float, dt_s: float) -> tuple[FloatArray, ...]:
+    """(a, b, c, s) of the exact constant-turn step for modes {CV, +w, -w}, (3,) each."""
+    omega = np.array([0.0, turn_rate_rad_s, -turn_rate_rad_s])
+    wt = omega * dt_s
+    s, c = np.sin(wt), np.cos(wt)
+    small = np.abs(omega) < 1e-9
+    safe = np.where(small, 1.0, omega)
+    a = np.where(small, dt_s, s / safe)
+    b = np.where(small, 0.5 * omega * dt_s * dt_s, (1.0 - c) / safe)
+    return a, b, c, s
+
+
 @dataclass(frozen=True, slots=True)
 class CvIft:
     """CV with infrequent turns: an IMM of modes {0: CV, 1: CTRA left, 2: CTRA right}.
@@ -226,15 +239,25 @@ class CvIft:
         """Markov mode switches over dt_s, vectorised with one uniform draw per state."""
         cum = _transition_for(self.transition, dt_s / self.switch_period_s)
         u = rng.random(mode.shape)
-        rows = cum[mode]  # (..., K)
-        return (u[..., None] >= rows).sum(axis=-1).clip(0, cum.shape[0] - 1).astype(np.int8)
+        rows = cum[mode, :-1]  # (..., K - 1); u < cum[:, -1] = 1 always
+        return (u[..., None] >= rows).sum(axis=-1, dtype=np.int8)
 
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
         new_mode = self.switch(mode, dt_s, rng)
-        omega = self._signs[new_mode] * self.turn_rate_rad_s
-        out = _turn_step(state, omega, dt_s)
+        if np.ndim(self.turn_rate_rad_s) == 0:
+            # one turn rate: the step's coefficients per mode, (K,) each, gathered by mode
+            a, b, c, s = (t[new_mode] for t in _turn_tables(float(self.turn_rate_rad_s), dt_s))
+            vx, vy = state[..., 2], state[..., 3]
+            out = np.empty(state.shape)
+            out[..., 0] = state[..., 0] + a * vx - b * vy
+            out[..., 1] = state[..., 1] + b * vx + a * vy
+            out[..., 2] = c * vx - s * vy
+            out[..., 3] = s * vx + c * vy
+        else:
+            omega = self._signs[new_mode] * self.turn_rate_rad_s
+            out = _turn_step(state, omega, dt_s)
         _add_accel_noise(out, self.accel_std_m_s2, dt_s, rng)
         return out, new_mode
 

@@ -70,8 +70,9 @@ def run_experiment(sc: Scenario, methods: tuple[str, ...], *, starts: int, reps:
                 fh.write(f"{datetime.now(UTC).isoformat(timespec='seconds')}  {command}\n")
         pending = store.pending(specs)
         progress = Progress(len(pending), f"{sc.kind} {sc.model}", stream or sys.stderr)
+        outcomes = execute(pending, workers=workers, scheduler=scheduler)
         try:
-            for outcome in execute(pending, workers=workers, scheduler=scheduler):
+            for outcome in outcomes:
                 if isinstance(outcome, RunFailure):
                     failures.append(outcome)
                     _log_failure(out, outcome)
@@ -80,6 +81,7 @@ def run_experiment(sc: Scenario, methods: tuple[str, ...], *, starts: int, reps:
                     completed += 1
                 progress.update(failed=isinstance(outcome, RunFailure))
         finally:
+            outcomes.close()  # on an interrupt: cancel and stop the workers now
             progress.close()
     report = write_report(out)
     return ExperimentOutcome(out, len(specs), len(specs) - len(pending), completed,

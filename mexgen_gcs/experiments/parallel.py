@@ -58,10 +58,11 @@ def execute(specs: Sequence[RunSpec], *, workers: int | None = None,
     exception in the consumer) cancels what has not started and stops the workers.
     ``connect_timeout_s``: how long to try to reach a Dask scheduler (ConfigError after)."""
     if not specs:
-        return iter(())
+        return
     if scheduler:
-        return _execute_dask(specs, scheduler, connect_timeout_s)
-    return _execute_pool(specs, workers or default_workers())
+        yield from _execute_dask(specs, scheduler, connect_timeout_s)
+    else:
+        yield from _execute_pool(specs, workers or default_workers())
 
 
 # -- local process pool ----------------------------------------------------------------------
@@ -117,9 +118,11 @@ def _execute_pool(specs: Sequence[RunSpec], workers: int) -> Iterator[Outcome]:
         if finished:
             pool.shutdown(wait=True)
         else:
+            # stop the runs in progress and those already queued to the workers now (they
+            # would only be thrown away); shutdown forgets the processes, so take them first
+            procs = list((getattr(pool, "_processes", None) or {}).values())
             pool.shutdown(wait=False, cancel_futures=True)
-            # stop the runs in progress now (they would only be thrown away)
-            for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            for proc in procs:
                 with contextlib.suppress(Exception):
                     proc.terminate()
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from mexgen_gcs.experiments.scenario import METHODS, MODELS, scenario
+from mexgen_gcs.experiments.scenario import METHODS, MODELS, scenario, scenario_from_settings
 from mexgen_gcs.experiments.store import read_identity, read_rows, read_series
 from mexgen_gcs.experiments.world import truth_for
 
@@ -271,7 +271,9 @@ def _trajectory_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[P
             if int(r["start"]) == start:
                 first.setdefault(r["method"], r)
         methods = [m for m in METHODS if m in first]
-        sc = scenario(kind, model, quick)  # type: ignore[arg-type]
+        stored = ident.get("settings", {})
+        sc = (scenario_from_settings(stored[model]) if isinstance(stored, dict) and model in stored
+              else scenario(kind, model, quick))  # type: ignore[arg-type]
         truth = truth_for(sc, seed, start)
         fig = Figure(figsize=(4.2 * len(methods), 4.6), layout="constrained")
         for j, method in enumerate(methods):

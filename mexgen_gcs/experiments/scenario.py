@@ -144,6 +144,15 @@ def scenario(kind: ScenarioKind, model: ModelName, quick: bool = False) -> Scena
     return sc
 
 
+def scenario_from_settings(settings: dict[str, Any]) -> Scenario:
+    """The Scenario that ``Scenario.describe()`` (as stored in experiment.json) came from."""
+    fields = Scenario.__dataclass_fields__
+    unknown = sorted(set(settings) - set(fields))
+    if unknown:
+        raise ConfigError(f"unknown scenario settings {unknown}")
+    return Scenario(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+
+
 def method_config(method: str) -> tuple[str, str]:
     """(planner.method, table label) of an experiment method name (pim, mc8, mexgen)."""
     try:

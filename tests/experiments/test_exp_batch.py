@@ -3,6 +3,7 @@ cluster on loopback, resumption after a kill or an interrupt, the CLI and the re
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -13,6 +14,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import psutil
 import pytest
 
 from mexgen_gcs.cli import main
@@ -36,6 +38,15 @@ def _numbers(rows: list[dict[str, str]]) -> dict[tuple[str, str, int, int], dict
     keyed = {row_key(r): {k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows}
     assert len(keyed) == len(rows), "duplicate runs"
     return keyed
+
+
+def _pool_workers() -> list[psutil.Process]:
+    procs = []
+    for p in psutil.Process().children(recursive=True):
+        with contextlib.suppress(psutil.Error):
+            if "spawn_main" in " ".join(p.cmdline()):
+                procs.append(p)
+    return procs
 
 
 def _run(out: Path, **kw: object) -> ExperimentOutcome:
@@ -134,6 +145,11 @@ def test_an_interrupt_keeps_finished_runs(reference: Path, tmp_path: Path,
     with pytest.raises(KeyboardInterrupt):
         _run(tmp_path, workers=2)
     assert len(read_rows(tmp_path)) == 4
+    # the pool's workers were stopped, not left to finish the queued runs
+    deadline = time.monotonic() + 30.0
+    while _pool_workers() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _pool_workers()
     monkeypatch.setattr(RunStore, "append", original)
     result = _run(tmp_path, workers=2)
     assert (result.completed, result.skipped) == (N_RUNS - 4, 4)

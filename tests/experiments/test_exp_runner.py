@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -9,7 +10,7 @@ import pytest
 
 from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.runner import COLUMNS, TIMING_COLUMNS, RunSpec, run_one
-from mexgen_gcs.experiments.scenario import MODELS, mission_for, scenario
+from mexgen_gcs.experiments.scenario import MODELS, mission_for, scenario, scenario_from_settings
 from mexgen_gcs.experiments.world import truth_for
 
 
@@ -99,8 +100,32 @@ def test_the_filter_assumes_the_scenario_model(model: str) -> None:
     assert f.planner.lookahead_s == 10.0 and f.planner.replan_interval_s == 5.0
 
 
+@pytest.mark.parametrize("kind", ["follow", "localise"])
+@pytest.mark.parametrize("quick", [False, True])
+def test_stored_settings_give_back_the_scenario(kind: str, quick: bool) -> None:
+    for model in MODELS:
+        sc = replace(scenario(kind, model, quick), front_back_db=0.0)  # type: ignore[arg-type]
+        stored = json.loads(json.dumps(sc.describe()))  # as in experiment.json
+        assert scenario_from_settings(stored) == sc
+    with pytest.raises(ConfigError, match="unknown scenario settings"):
+        scenario_from_settings({**stored, "wind_m_s": 3.0})
+
+
 def test_unknown_names_are_config_errors() -> None:
     with pytest.raises(ConfigError, match="unknown model"):
         scenario("localise", "ctra")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="unknown method"):
         mission_for(scenario("localise", "rw"), "mc16")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["pim", "mc8", "mexgen"])
+def test_paper_settings_localise_random_walk_tags(method: str) -> None:
+    """At the paper's settings every method localises four random-walk tags well within the
+    1000 s limit (50 of 50 runs each in docs/experiments.md), about 20 m off."""
+    sc = scenario("localise", "rw")
+    for start in range(2):
+        row = run_one(RunSpec(sc, method, 0, start, 0)).row
+        assert row["success"] == "1", row
+        assert float(row["time_s"]) < 400.0
+        assert float(row["error_m"]) < 60.0
