@@ -200,8 +200,9 @@ class MissionCore:
         beliefs = []
         for tid in targets:
             f = self.filters[tid]
-            states, modes = f.sample(self.planning_particles, self.rng)
-            beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence)))
+            states, modes, offset, exponent = f.sample_planning(self.planning_particles, self.rng)
+            beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence),
+                                     offset, exponent))
         return PlanRequest(t, vehicle, tuple(beliefs))
 
     def all_localised(self) -> bool:
