@@ -132,3 +132,55 @@ def test_no_import_cycles() -> None:
     assert not new, f"import cycles: {new}"
     gone = [sorted(c) for c in KNOWN_CYCLES if c not in found]
     assert not gone, f"these cycles are gone: remove them from KNOWN_CYCLES: {gone}"
+
+
+# -- layers (docs/architecture.md) -------------------------------------------------------------
+
+#: layer -> the layers it may import (besides itself). A layer is a subpackage of mexgen_gcs;
+#: "errors" is mexgen_gcs/errors.py, "package" mexgen_gcs/__init__.py (the version).
+LAYERS: dict[str, set[str]] = {
+    "package": set(),
+    "errors": set(),
+    "core": {"errors"},
+    "config": {"core", "errors"},
+    "io": {"config", "core", "errors", "package"},
+    "mission": {"io", "config", "core", "errors", "package"},
+    "ui": {"mission", "io", "config", "core", "errors", "package"},
+    "analysis": {"mission", "io", "config", "core", "errors", "package"},
+    "experiments": {"mission", "config", "core", "errors", "package"},
+    "bench": {"core", "config", "errors", "package"},
+    "cli": {"config", "errors", "package"},  # the other handlers are looked up by name
+    "__main__": {"cli"},
+}
+#: what sim (a separate program) may use of mexgen_gcs
+SIM_MAY_IMPORT = ("mexgen_gcs.core", "mexgen_gcs.config", "mexgen_gcs.errors",
+                  "mexgen_gcs.io.wire")
+#: (importer, imported) that break the layers, being removed elsewhere; emptied by the lead
+KNOWN_LAYER_BREAKS: frozenset[tuple[str, str]] = frozenset({
+    ("mexgen_gcs.mission.run", "mexgen_gcs.ui.app"),  # the UI runner, looked up lazily
+})
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return "package" if len(parts) == 1 else parts[1]
+
+
+def test_layers_import_only_what_docs_architecture_allows() -> None:
+    breaks = set()
+    for module, targets in import_graph().items():
+        for target in targets:
+            if module.startswith("sim"):
+                if target.startswith("mexgen_gcs") and not target.startswith(SIM_MAY_IMPORT):
+                    breaks.add((module, target))
+                continue
+            if target.startswith("sim"):
+                breaks.add((module, target))  # mexgen_gcs never imports the simulator
+                continue
+            a, b = _layer(module), _layer(target)
+            if a != b and b not in LAYERS[a]:
+                breaks.add((module, target))
+    assert set(LAYERS) >= {_layer(m) for m in import_graph() if m.startswith("mexgen_gcs")}
+    assert breaks - KNOWN_LAYER_BREAKS == set(), sorted(breaks - KNOWN_LAYER_BREAKS)
+    gone = KNOWN_LAYER_BREAKS - breaks
+    assert not gone, f"these layer breaks are gone: remove them from KNOWN_LAYER_BREAKS: {gone}"
