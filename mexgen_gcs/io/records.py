@@ -21,7 +21,7 @@ written as null, which is why most measured values may be null.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
@@ -61,14 +61,12 @@ class Record(BaseModel):
         return value
 
     def __contains__(self, key: object) -> bool:
-        return isinstance(key, str) and self.get(key, _MISSING) is not _MISSING
+        marker = object()
+        return isinstance(key, str) and self.get(key, marker) is not marker
 
     def to_dict(self) -> dict[str, Any]:
         """The record as JSON data (listed fields and extra ones)."""
         return self.model_dump(mode="json")
-
-
-_MISSING = object()
 
 Num = float | None
 """A measured value; null when it was not finite."""
@@ -409,16 +407,8 @@ TRUTH_RECORDS: tuple[type[Record], ...] = (
 
 
 def _adapter(models: tuple[type[Record], ...]) -> TypeAdapter[Any]:
-    union = Annotated[models[0] if len(models) == 1 else _union(models),
-                      Field(discriminator="type")]
-    return TypeAdapter(union)
-
-
-def _union(models: tuple[type[Record], ...]) -> Any:
-    from functools import reduce
-    from operator import or_
-
-    return reduce(or_, models)
+    """Validates one line (JSON) as the record type its `type` names."""
+    return TypeAdapter(Annotated[Union[models], Field(discriminator="type")])  # noqa: UP007
 
 
 FLIGHT_ADAPTER: TypeAdapter[Any] = _adapter(FLIGHT_RECORDS)
