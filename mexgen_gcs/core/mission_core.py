@@ -13,7 +13,7 @@ arrays that a worker thread can plan on while the filters keep updating.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -25,6 +25,7 @@ from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, TagEstimate
 from mexgen_gcs.core.motion import MotionModel
 from mexgen_gcs.core.planner import TagBelief, VehicleState
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import TagRadioPrior
 
 FloatArray = NDArray[np.float64]
 MissionKind = Literal["localise", "follow"]
@@ -84,6 +85,7 @@ class MissionCore:
         follow_tag: str | None = None,
         planning_particles: int = 1000,
         t0: float = 0.0,
+        tag_priors: Mapping[str, TagRadioPrior] | None = None,
     ) -> None:
         if not tag_ids:
             raise ValueError("a mission needs at least one tag")
@@ -101,7 +103,8 @@ class MissionCore:
         # one child generator per tag: adding a tag does not change the others' draws
         children = rng.spawn(len(self.tag_ids))
         self.filters = {
-            tid: BernoulliFilter(motion, radio, area, filter_config, child)
+            tid: BernoulliFilter(motion, radio, area, filter_config, child,
+                                 (tag_priors or {}).get(tid))
             for tid, child in zip(self.tag_ids, children, strict=True)
         }
         self.localised: dict[str, Localised] = {}
