@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import contextlib
 import ipaddress
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
@@ -150,6 +152,14 @@ def _hypotheses(value: Any) -> Any:
     if isinstance(value, int | float) and not isinstance(value, bool):
         return (value,)
     return value
+
+
+CLASSIC_ESTIMATOR: Mapping[str, Any] = MappingProxyType({
+    "radio.p0_std_db": 0.0, "radio.path_loss_exponent_std": 0.0,
+    "radio.shadowing_std_db": [0.0], "radio.model_error_std_db": [0.0],
+    "radio.outlier_prob": 0.0})
+"""Dotted mission overrides for the classic estimator, which trusts the radio model exactly
+(the paper's simulations and the estimator of earlier versions)."""
 
 
 class RadioSection(Section):
