@@ -15,6 +15,7 @@ from pathlib import Path
 
 from mexgen_gcs.config import load_mission
 from mexgen_gcs.errors import ConfigError
+from sim.clock import SYSTEM_TIME_SOURCES
 from sim.faults import KINDS, parse_fault_flag
 from sim.runner import Simulation
 from sim.scenario import Address, SimOptions
@@ -46,6 +47,16 @@ def _positive(text: str) -> float:
     return value
 
 
+def _rate_error(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not -0.5 <= value <= 0.5:
+        raise argparse.ArgumentTypeError(f"expected -0.5 <= E <= 0.5, got {value}")
+    return value
+
+
 def _sysid(text: str) -> int:
     if not text.isdigit() or not 1 <= int(text) <= 255:
         raise argparse.ArgumentTypeError(f"expected a system id 1..255, got {text!r}")
@@ -62,6 +73,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speedup", type=_positive, default=1.0,
                    help="sim time runs K times faster than the wall clock, 0 < K <= 200 "
                         "(default 1; up to 50 is reliable with MAVSDK, see sim/README.md)")
+    p.add_argument("--clock-rate-error", type=_rate_error, default=0.0, metavar="E",
+                   help="sim time runs at K*(1+E) instead of K, -0.5 <= E <= 0.5 (default 0; "
+                        "PX4 SIH at speed factor 4 runs about -0.02)")
+    p.add_argument("--system-time", choices=SYSTEM_TIME_SOURCES, default="sim",
+                   help="SYSTEM_TIME.time_unix_usec: sim = sim time as unix (a real "
+                        "aircraft's GPS clock), host = the host's wall clock while time_boot_ms "
+                        "is sim time (PX4 SITL); default sim")
     p.add_argument("--mavlink", type=parse_address, default=("127.0.0.1", 14540),
                    metavar="HOST:PORT", help="send MAVLink here (default 127.0.0.1:14540)")
     p.add_argument("--gcs", type=parse_address, default=None, metavar="HOST:PORT",
@@ -90,7 +108,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sim: {exc}", file=sys.stderr)
         return 2
     options = SimOptions(
-        speedup=args.speedup, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
+        speedup=args.speedup, clock_rate_error=args.clock_rate_error,
+        system_time=args.system_time, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
         radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
         extra_faults=tuple(args.fault), keep_running=args.keep_running)
     try:

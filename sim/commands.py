@@ -133,7 +133,7 @@ class CommandHandler:
         if not math.isfinite(alt):
             return self.v.ap.takeoff(None)
         rel = alt + self.v.ap.home_enu_m[2] if cmd.relative_alt else alt - self.v.frame.alt0_m
-        return self.v.ap.takeoff(rel - self.v.ap.home_enu_m[2])
+        return self.v.ap.takeoff(rel)
 
     def _land(self, cmd: Command) -> Result:
         p = cmd.params
