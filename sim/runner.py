@@ -157,7 +157,8 @@ class Simulation:
         wall = self.clock.wall_s()
         while self.clock.sim_s < due - 1e-9:
             now = self.clock.sim_s
-            t_next = min(due, self.radio.next_event_s(), self.faults.next_start_s(now),
+            radio_next = self.radio.next_event_s() if self.options.radios else math.inf
+            t_next = min(due, radio_next, self.faults.next_start_s(now),
                          self._next_vehicle_truth_s, now + MAX_PHYSICS_DT_S)
             t_next = max(t_next, now + 1e-6)
             self.autopilot.step(t_next - now, t_next, wall)
@@ -175,8 +176,9 @@ class Simulation:
         if now + 1e-9 >= self._next_vehicle_truth_s:
             self._vehicle_truth()
             self._next_vehicle_truth_s = math.floor(now + 1e-9) + TRUTH_VEHICLE_PERIOD_S
-        for datagram in self.radio.advance(now, wall, self._pose()):
-            self._radio_send(datagram)
+        if self.options.radios:
+            for datagram in self.radio.advance(now, wall, self._pose()):
+                self._radio_send(datagram)
 
     def _pose(self) -> ReceiverPose:
         s = self.autopilot.state

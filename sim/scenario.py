@@ -36,6 +36,7 @@ class SimOptions:
     sysid: int = 1
     extra_faults: tuple[Fault, ...] = field(default=())
     keep_running: bool = False
+    radios: bool = True
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:

@@ -1,0 +1,212 @@
+"""What the riding radios learn from any MAVLink vehicle: its clock, its pose, its flight state.
+
+Frames: WGS84 from GLOBAL_POSITION_INT (lat/lon, ``alt`` AMSL, ``relative_alt`` above the
+vehicle's home), compass heading ``hdg`` in degrees (0 north, clockwise); the caller maps them
+into the mission's local ENU frame.
+
+The vehicle's clock is its ``time_boot_ms``. It is mapped to unix time once, from the first
+valid SYSTEM_TIME: ``unix = boot_s + (time_unix_usec / 1e6 - time_boot_ms / 1e3)``. On a real
+aircraft, and on the project's simulator, that offset is the same in every SYSTEM_TIME; on PX4
+SITL at speed factor K it is not (SYSTEM_TIME's unix field is the host's wall clock while
+``time_boot_ms`` is simulated), so the first sample is kept and the mapping stays linear in
+vehicle time. Without SYSTEM_TIME the host's clock at the first timestamped message anchors it.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections import deque
+from dataclasses import dataclass
+from typing import Any, Literal
+
+#: SYSTEM_TIME values below this (2001-09-09) mean "not set".
+MIN_VALID_UNIX_S = 1.0e9
+#: Pose samples kept, vehicle seconds.
+HISTORY_S = 60.0
+#: The longest gap between two pose samples that is interpolated, vehicle seconds.
+MAX_GAP_S = 2.0
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleEndpoint:
+    """``udpin:HOST:PORT`` (listen there) or ``udpout:HOST:PORT`` (send there first)."""
+
+    mode: Literal["udpin", "udpout"]
+    host: str
+    port: int
+
+    def __str__(self) -> str:
+        return f"{self.mode}:{self.host}:{self.port}"
+
+
+def parse_vehicle_url(text: str) -> VehicleEndpoint:
+    """``udpin:0.0.0.0:14550``, ``udpout:127.0.0.1:18570`` (``//`` after the colon allowed)."""
+    mode, sep, rest = text.partition(":")
+    rest = rest.removeprefix("//")
+    host, sep2, port = rest.rpartition(":")
+    if (mode not in ("udpin", "udpout") or not sep or not sep2 or not host or not port.isdigit()
+            or not 0 <= int(port) <= 65535 or (mode == "udpout" and int(port) == 0)):
+        raise ValueError(f"expected udpin:HOST:PORT or udpout:HOST:PORT, e.g. "
+                         f"udpin:0.0.0.0:14550; got {text!r}")
+    return VehicleEndpoint(mode, host, int(port))  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True, slots=True)
+class PoseSample:
+    """The vehicle at ``boot_s`` (its time since boot, seconds)."""
+
+    boot_s: float
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+    """AMSL."""
+    rel_alt_m: float
+    """Above the vehicle's home."""
+    yaw_deg: float
+
+
+def _lerp_angle_deg(a: float, b: float, w: float) -> float:
+    d = (b - a + 180.0) % 360.0 - 180.0
+    return (a + w * d) % 360.0
+
+
+class PoseHistory:
+    """Recent pose samples in vehicle time, interpolated in between."""
+
+    def __init__(self, keep_s: float = HISTORY_S) -> None:
+        self._keep_s = keep_s
+        self._times: deque[float] = deque()
+        self._samples: deque[PoseSample] = deque()
+
+    def __len__(self) -> int:
+        return len(self._samples)
+
+    @property
+    def latest_s(self) -> float | None:
+        return self._times[-1] if self._times else None
+
+    def add(self, sample: PoseSample) -> bool:
+        """Append a newer sample (older or repeated ones are ignored: False)."""
+        if self._times and sample.boot_s <= self._times[-1]:
+            return False
+        self._times.append(sample.boot_s)
+        self._samples.append(sample)
+        while self._times and self._times[0] < sample.boot_s - self._keep_s:
+            self._times.popleft()
+            self._samples.popleft()
+        return True
+
+    def at(self, boot_s: float) -> PoseSample | None:
+        """The pose at ``boot_s`` by linear interpolation (nearest sample within 0.1 s at the
+        ends); None outside the history or across a gap longer than MAX_GAP_S."""
+        if not self._times:
+            return None
+        times = self._times
+        i = bisect.bisect_left(times, boot_s)
+        if i < len(times) and times[i] == boot_s:
+            return self._samples[i]
+        if i == 0 or i == len(times):
+            j = 0 if i == 0 else len(times) - 1
+            return self._samples[j] if abs(times[j] - boot_s) <= 0.1 else None
+        a, b = self._samples[i - 1], self._samples[i]
+        gap = b.boot_s - a.boot_s
+        if gap > MAX_GAP_S:
+            return None
+        w = (boot_s - a.boot_s) / gap
+        return PoseSample(
+            boot_s, a.lat_deg + w * (b.lat_deg - a.lat_deg),
+            a.lon_deg + w * (b.lon_deg - a.lon_deg), a.alt_m + w * (b.alt_m - a.alt_m),
+            a.rel_alt_m + w * (b.rel_alt_m - a.rel_alt_m), _lerp_angle_deg(a.yaw_deg, b.yaw_deg, w))
+
+
+_ARMED_FLAG = 128
+_LANDED_ON_GROUND = 1
+_LANDED_IN_AIR = 2
+_FLYING_REL_ALT_M = 1.0
+
+
+class VehicleTrack:
+    """The vehicle as its telemetry shows it. Feed every decoded message to ``handle``."""
+
+    def __init__(self, sysid: int | None = None) -> None:
+        self.sysid = sysid
+        """The vehicle's system id: given, or the first autopilot heard."""
+        self.offset_s: float | None = None
+        """unix - boot seconds, fixed at the first SYSTEM_TIME (or host clock)."""
+        self.offset_source = ""
+        self.system_time_samples = 0
+        self.home: tuple[float, float, float] | None = None
+        """The vehicle's home: lat, lon (degrees), alt (AMSL m)."""
+        self.armed = False
+        self.landed_state = 0
+        self.has_flown = False
+        self.poses = PoseHistory()
+        self.last_boot_s: float | None = None
+        self._yaw_deg = 0.0
+
+    def handle(self, msg: Any) -> None:
+        kind = msg.get_type()
+        src = msg.get_srcSystem()
+        if kind == "HEARTBEAT":
+            if self.sysid is None and msg.autopilot != 8 and msg.get_srcComponent() == 1 \
+                    and msg.type not in (6, 18):  # not INVALID, not a GCS or onboard computer
+                self.sysid = src
+            if src == self.sysid and msg.get_srcComponent() == 1:
+                self.armed = bool(msg.base_mode & _ARMED_FLAG)
+            return
+        if self.sysid is None or src != self.sysid:
+            return
+        if kind == "SYSTEM_TIME":
+            self._system_time(msg)
+        elif kind == "GLOBAL_POSITION_INT":
+            self._position(msg)
+        elif kind == "HOME_POSITION":
+            self.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1e3)
+        elif kind == "EXTENDED_SYS_STATE":
+            self.landed_state = int(msg.landed_state)
+            if self.armed and self.landed_state == _LANDED_IN_AIR:
+                self.has_flown = True
+
+    def _system_time(self, msg: Any) -> None:
+        unix_s, boot_s = msg.time_unix_usec / 1e6, msg.time_boot_ms / 1e3
+        if unix_s < MIN_VALID_UNIX_S:
+            return
+        self.system_time_samples += 1
+        if self.offset_s is None or self.offset_source != "SYSTEM_TIME":
+            self.offset_s = unix_s - boot_s
+            self.offset_source = "SYSTEM_TIME"
+
+    def _position(self, msg: Any) -> None:
+        boot_s = msg.time_boot_ms / 1e3
+        if msg.hdg != 65535:  # 65535: heading unknown, keep the last one
+            self._yaw_deg = msg.hdg / 100.0
+        yaw = self._yaw_deg
+        sample = PoseSample(boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1e3,
+                            msg.relative_alt / 1e3, yaw)
+        if not (math.isfinite(sample.lat_deg) and -90.0 <= sample.lat_deg <= 90.0):
+            return
+        if self.poses.add(sample):
+            self.last_boot_s = boot_s
+        if self.armed and sample.rel_alt_m > _FLYING_REL_ALT_M:
+            self.has_flown = True
+
+    def anchor_on_host_clock(self, host_unix_s: float) -> None:
+        """No SYSTEM_TIME: take the host's clock as the vehicle's at the latest boot time."""
+        if self.offset_s is None and self.last_boot_s is not None:
+            self.offset_s = host_unix_s - self.last_boot_s
+            self.offset_source = "host"
+
+    def unix_of(self, boot_s: float) -> float:
+        assert self.offset_s is not None
+        return boot_s + self.offset_s
+
+    @property
+    def landed_and_disarmed(self) -> bool:
+        if self.armed:
+            return False
+        if self.landed_state:
+            return self.landed_state == _LANDED_ON_GROUND
+        latest = self.poses.latest_s
+        pose = self.poses.at(latest) if latest is not None else None
+        return pose is not None and pose.rel_alt_m < _FLYING_REL_ALT_M
