@@ -215,22 +215,24 @@ class RadioRider:
 
     def _clock_info(self) -> dict[str, Any]:
         return {"offset_s": self.track.offset_s, "source": self.track.offset_source,
-                "boot0_s": self._boot0}
+                "rate": self.track.rate, "boot0_s": self._boot0}
 
     def _anchor(self) -> None:
         """Fix the vehicle clock's unix offset, then start the radios at the newest pose."""
         track = self.track
         if (track.offset_s is None and self._first_pose_wall is not None
                 and self._wall_s() - self._first_pose_wall > SYSTEM_TIME_WAIT_S):
-            track.anchor_on_host_clock(time.time())
-            print("sim: no SYSTEM_TIME from the vehicle; its clock is anchored on this host's",
-                  file=sys.stderr)
+            track.anchor_now(time.time())
+            if track.offset_source == "host":
+                print("sim: no SYSTEM_TIME from the vehicle; its clock is anchored on this "
+                      "host's", file=sys.stderr)
         if self._boot0 is not None or track.offset_s is None or track.poses.latest_s is None:
             return
         self._boot0 = track.poses.latest_s
         self._write_header()
         print(f"sim: radios on the vehicle's clock (sysid {track.sysid}, boot "
-              f"{self._boot0:.3f} s = unix {self._unix_of(0.0):.3f}, {track.offset_source})",
+              f"{self._boot0:.3f} s = unix {self._unix_of(0.0):.3f}; boot_unix "
+              f"{track.offset_s:.3f} from {track.offset_source}, rate {track.rate})",
               file=sys.stderr, flush=True)
 
     def step(self) -> None:

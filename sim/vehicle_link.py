@@ -4,12 +4,15 @@ Frames: WGS84 from GLOBAL_POSITION_INT (lat/lon, ``alt`` AMSL, ``relative_alt`` 
 vehicle's home), compass heading ``hdg`` in degrees (0 north, clockwise); the caller maps them
 into the mission's local ENU frame.
 
-The vehicle's clock is its ``time_boot_ms``. It is mapped to unix time once, from the first
-valid SYSTEM_TIME: ``unix = boot_s + (time_unix_usec / 1e6 - time_boot_ms / 1e3)``. On a real
-aircraft, and on the project's simulator, that offset is the same in every SYSTEM_TIME; on PX4
-SITL at speed factor K it is not (SYSTEM_TIME's unix field is the host's wall clock while
-``time_boot_ms`` is simulated), so the first sample is kept and the mapping stays linear in
-vehicle time. Without SYSTEM_TIME the host's clock at the first timestamped message anchors it.
+The vehicle's clock is its ``time_boot_ms``; its unix time is ``unix = boot_unix + boot_s``,
+where ``boot_unix`` is the unix time at which that clock read zero, found from SYSTEM_TIME
+samples (unix ``U``, boot ``B``): ``B = rate * U + c`` fitted by least squares over the first
+samples spanning ``ANCHOR_SPAN_S``, ``boot_unix = -c / rate``, then fixed. On an aircraft (and on
+the project's simulator) ``rate`` is 1 and ``boot_unix = U - B`` of any sample; on PX4 SITL at
+speed factor K, SYSTEM_TIME's unix field is the host's wall clock while ``time_boot_ms`` is
+simulated (``rate`` ~0.98 K), and ``boot_unix`` is the host time at which PX4 booted. Either way
+every observer of the vehicle computes the same ``boot_unix`` (within milliseconds), whenever
+it starts listening. Without SYSTEM_TIME the host's clock anchors it (observer-dependent).
 """
 
 from __future__ import annotations
@@ -20,12 +23,31 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+
 #: SYSTEM_TIME values below this (2001-09-09) mean "not set".
 MIN_VALID_UNIX_S = 1.0e9
 #: Pose samples kept, vehicle seconds.
 HISTORY_S = 60.0
 #: The longest gap between two pose samples that is interpolated, vehicle seconds.
 MAX_GAP_S = 2.0
+#: SYSTEM_TIME samples needed to fit the clock: at least this many, spanning ANCHOR_SPAN_S of
+#: their unix time, or of vehicle time (a sped-up SITL crosses that first).
+ANCHOR_MIN_SAMPLES = 3
+ANCHOR_SPAN_S = 2.0
+
+
+def fit_boot_unix(samples: list[tuple[float, float]]) -> tuple[float, float]:
+    """(boot_unix, rate) from (unix_s, boot_s) samples: boot = rate * (unix - boot_unix)."""
+    arr = np.asarray(samples, dtype=np.float64)
+    u0 = float(arr[0, 0])
+    du = arr[:, 0] - u0
+    if np.ptp(du) == 0.0:
+        return u0 - float(arr[0, 1]), 1.0
+    rate, c = (float(v) for v in np.polyfit(du, arr[:, 1], 1))
+    if not rate > 0.0:
+        return u0 - float(arr[0, 1]), 1.0
+    return u0 - c / rate, rate
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,9 +155,12 @@ class VehicleTrack:
         self.sysid = sysid
         """The vehicle's system id: given, or the first autopilot heard."""
         self.offset_s: float | None = None
-        """unix - boot seconds, fixed at the first SYSTEM_TIME (or host clock)."""
+        """unix - boot seconds (= boot_unix), fixed once (see the module docstring)."""
         self.offset_source = ""
+        self.rate: float | None = None
+        """Fitted vehicle boot seconds per SYSTEM_TIME unix second."""
         self.system_time_samples = 0
+        self._samples: list[tuple[float, float]] = []
         self.home: tuple[float, float, float] | None = None
         """The vehicle's home: lat, lon (degrees), alt (AMSL m)."""
         self.armed = False
@@ -173,8 +198,15 @@ class VehicleTrack:
         if unix_s < MIN_VALID_UNIX_S:
             return
         self.system_time_samples += 1
-        if self.offset_s is None or self.offset_source != "SYSTEM_TIME":
-            self.offset_s = unix_s - boot_s
+        if self.offset_s is not None:
+            return
+        if self._samples and boot_s <= self._samples[-1][1]:
+            self._samples.clear()  # a reboot: start again
+        self._samples.append((unix_s, boot_s))
+        first, last = self._samples[0], self._samples[-1]
+        span = max(last[0] - first[0], last[1] - first[1])
+        if len(self._samples) >= ANCHOR_MIN_SAMPLES and span >= ANCHOR_SPAN_S:
+            self.offset_s, self.rate = fit_boot_unix(self._samples)
             self.offset_source = "SYSTEM_TIME"
 
     def _position(self, msg: Any) -> None:
@@ -191,9 +223,15 @@ class VehicleTrack:
         if self.armed and sample.rel_alt_m > _FLYING_REL_ALT_M:
             self.has_flown = True
 
-    def anchor_on_host_clock(self, host_unix_s: float) -> None:
-        """No SYSTEM_TIME: take the host's clock as the vehicle's at the latest boot time."""
-        if self.offset_s is None and self.last_boot_s is not None:
+    def anchor_now(self, host_unix_s: float) -> None:
+        """Out of patience: one SYSTEM_TIME sample (rate 1), else the host's clock at the
+        latest vehicle time."""
+        if self.offset_s is not None:
+            return
+        if self._samples:
+            unix_s, boot_s = self._samples[-1]
+            self.offset_s, self.rate, self.offset_source = unix_s - boot_s, 1.0, "SYSTEM_TIME"
+        elif self.last_boot_s is not None:
             self.offset_s = host_unix_s - self.last_boot_s
             self.offset_source = "host"
 

@@ -89,10 +89,21 @@ def test_vehicle_track_clock_and_state() -> None:
     assert track.sysid == 3 and track.armed
     feed(mav, mav.system_time_encode(0, 1000))  # unix not set yet: ignored
     assert track.offset_s is None
+    # SITL at speed factor 4: SYSTEM_TIME's unix runs 1x (the host's), boot time 4x.
     feed(mav, mav.system_time_encode(int(1.7e15), 10_000))
-    feed(mav, mav.system_time_encode(int(1.7e15 + 1e6), 14_000))  # SITL: unix 1x, boot 4x
-    assert track.offset_s == pytest.approx(1.7e9 - 10.0) and track.system_time_samples == 2
-    assert track.unix_of(14.0) == pytest.approx(1.7e9 + 4.0)  # linear in vehicle time
+    feed(mav, mav.system_time_encode(int(1.7e15 + 1e6), 14_000))
+    assert track.offset_s is None  # two samples are not enough to fit
+    feed(mav, mav.system_time_encode(int(1.7e15 + 2e6), 18_000))
+    # The vehicle's clock read 0 at unix 1.7e9 - 2.5: whoever listens, from whichever sample.
+    assert track.offset_s == pytest.approx(1.7e9 - 2.5) and track.rate == pytest.approx(4.0)
+    assert track.unix_of(14.0) == pytest.approx(1.7e9 + 11.5)  # linear in vehicle time
+    late = VehicleTrack(3)
+    for unix_us, boot_ms in ((1.7e15 + 30e6, 130_000), (1.7e15 + 31e6, 134_000),
+                             (1.7e15 + 32e6, 138_000)):
+        for m in M.MAVLink(None).parse_buffer(
+                mav.system_time_encode(int(unix_us), boot_ms).pack(mav)) or []:
+            late.handle(m)
+    assert late.offset_s == pytest.approx(track.offset_s)  # the same anchor 30 s later
     feed(mav, mav.global_position_int_encode(15_000, -349212000, 1386011000, 70_000, 50_000,
                                              0, 0, 0, 9000))
     assert track.has_flown and track.poses.latest_s == 15.0
@@ -119,13 +130,17 @@ def _interp_truth(vehicle: list[dict[str, Any]], t: float, key: str) -> float:
     return float(np.interp(t, ts, [r[key] for r in vehicle]))
 
 
+@pytest.mark.parametrize("clock", [[], ["--system-time", "host", "--clock-rate-error", "-0.02"]],
+                         ids=["aircraft_clock", "px4_sitl_clock"])
 def test_radios_ride_on_the_simulators_vehicle(sim_factory: SimFactory, client: Any,
-                                               tmp_path: Path) -> None:
+                                               tmp_path: Path, clock: list[str]) -> None:
+    """With PX4 SITL's clocks too (SYSTEM_TIME unix = host clock, sim time at 0.98 K): the
+    radios still find the vehicle clock's unix origin, the simulator's start_unix."""
     speedup = 5.0
     gcs_port = free_udp_port()
     radio = udp_socket(timeout_s=0.2)
     sim = start(sim_factory, client, speedup=speedup,
-                extra=["--no-radios", "--gcs", f"127.0.0.1:{gcs_port}"])
+                extra=["--no-radios", "--gcs", f"127.0.0.1:{gcs_port}", *clock])
     rider = start_radios_only(DEMO_MISSION, tmp_path / "rider",
                               vehicle=f"udpin:127.0.0.1:{gcs_port}",
                               radio_port=radio.getsockname()[1])
@@ -169,7 +184,8 @@ def test_radios_ride_on_the_simulators_vehicle(sim_factory: SimFactory, client: 
     # Same seed, same world: the tags the riding radios simulate are the simulator's.
     assert header["tags"] == sim_truth[0]["tags"]
     # On the vehicle's clock: the simulator's unix time of sim time (its SYSTEM_TIME).
-    assert header["clock"]["offset_s"] == pytest.approx(sim_truth[0]["start_unix"], abs=1e-3)
+    assert header["clock"]["offset_s"] == pytest.approx(sim_truth[0]["start_unix"], abs=0.02)
+    assert header["clock"]["rate"] == pytest.approx(1.0 if not clock else 4.9, abs=0.05)
     vehicle = [r for r in sim_truth if r["type"] == "vehicle"]
     t0, t1 = vehicle[0]["t"], vehicle[-1]["t"]
     assert all(t0 <= d.t <= t1 + 2.0 for d in detections)
