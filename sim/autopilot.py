@@ -494,6 +494,10 @@ class Autopilot:
         action = int(self.params["GF_ACTION"])
         if action == 2 and self.mode not in (modes.RTL, modes.LAND):
             self._failsafe(modes.HOLD, "geofence", texts.GEOFENCE)
+            # PX4 (navigator geofence_breach_check, GF_PREDICT 0) loiters where the breach was
+            # seen: the vehicle brakes past it and comes back to hold there.
+            s = self.state
+            self._hold_target = (s.east_m, s.north_m, s.up_m)
         elif action == 3 and self.mode not in (modes.RTL, modes.LAND):
             self._failsafe(modes.RTL, "geofence", texts.GEOFENCE)
         elif action == 5:

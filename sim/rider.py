@@ -10,7 +10,7 @@ vehicle's ``relative_alt`` (above ITS home); datagrams carry the vehicle's lat/l
 Radio time ``sim_s`` = vehicle seconds since the radios started (the first pose after the clock
 was anchored); pulses are processed only up to the newest pose, so every pulse is posed by
 interpolation between two telemetry samples, never extrapolated. The radios send the vehicle
-only SET_MESSAGE_INTERVAL(SYSTEM_TIME, 1 s) until SYSTEM_TIME arrives and one
+only SET_MESSAGE_INTERVAL(SYSTEM_TIME, 0.2 s) until SYSTEM_TIME arrives and one
 REQUEST_MESSAGE(HOME_POSITION), no HEARTBEAT, so no link-loss check of the autopilot counts
 them. Exit 0 after the vehicle has flown, landed and disarmed, or on SIGINT/SIGTERM.
 """
@@ -43,8 +43,10 @@ RIDER_SYSID = 251
 RIDER_COMPID = mavlink.MAV_COMP_ID_PERIPHERAL
 TICK_S = 0.01
 REQUEST_EVERY_S = 1.0
-#: Wall seconds to wait for SYSTEM_TIME before anchoring the vehicle clock on the host's.
-SYSTEM_TIME_WAIT_S = 5.0
+#: SYSTEM_TIME asked at 5 Hz (of vehicle time on PX4): the clock fit needs a few samples.
+SYSTEM_TIME_INTERVAL_US = 200_000
+#: Wall seconds to wait for enough SYSTEM_TIME before anchoring the vehicle clock otherwise.
+SYSTEM_TIME_WAIT_S = 8.0
 EXIT_LINGER_S = 1.5
 
 
@@ -166,7 +168,8 @@ class RadioRider:
         target = self.track.sysid or 0
         if self.track.system_time_samples == 0:
             self._mav.command_long_send(target, 1, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                        mavlink.MAVLINK_MSG_ID_SYSTEM_TIME, 1e6, 0, 0, 0, 0, 0)
+                                        mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,
+                                        SYSTEM_TIME_INTERVAL_US, 0, 0, 0, 0, 0)
         if self.track.home is None and self.track.sysid is not None and not self._home_requested:
             self._home_requested = True
             self._mav.command_long_send(target, 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,

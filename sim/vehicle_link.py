@@ -7,12 +7,14 @@ into the mission's local ENU frame.
 The vehicle's clock is its ``time_boot_ms``; its unix time is ``unix = boot_unix + boot_s``,
 where ``boot_unix`` is the unix time at which that clock read zero, found from SYSTEM_TIME
 samples (unix ``U``, boot ``B``): ``B = rate * U + c`` fitted by least squares over the first
-samples spanning ``ANCHOR_SPAN_S``, ``boot_unix = -c / rate``, then fixed. On an aircraft (and on
-the project's simulator) ``rate`` is 1 and ``boot_unix = U - B`` of any sample; on PX4 SITL at
-speed factor K, SYSTEM_TIME's unix field is the host's wall clock while ``time_boot_ms`` is
-simulated (``rate`` ~0.98 K), and ``boot_unix`` is the host time at which PX4 booted. Either way
-every observer of the vehicle computes the same ``boot_unix`` (within milliseconds), whenever
-it starts listening. Without SYSTEM_TIME the host's clock anchors it (observer-dependent).
+samples spanning ``ANCHOR_SPAN_S`` of ``U``, ``boot_unix = -c / rate``, then fixed. On an
+aircraft (and on the project's simulator) ``rate`` is 1 and ``boot_unix = U - B`` of any
+sample; on PX4 SITL at speed factor K, SYSTEM_TIME's unix field is the host's wall clock while
+``time_boot_ms`` is simulated (``rate`` ~0.98 K), and ``boot_unix`` is the host time at which
+PX4 booted. Every observer of the vehicle then computes the same ``boot_unix`` whenever it
+starts listening: exactly on an aircraft; on SITL within the error of extrapolating the fitted
+rate back to boot (a SITL's rate wanders with the host's load; measured 0.1-0.2 s on PX4 at
+K = 4). Without SYSTEM_TIME the host's clock anchors it (observer-dependent).
 """
 
 from __future__ import annotations
@@ -32,9 +34,9 @@ HISTORY_S = 60.0
 #: The longest gap between two pose samples that is interpolated, vehicle seconds.
 MAX_GAP_S = 2.0
 #: SYSTEM_TIME samples needed to fit the clock: at least this many, spanning ANCHOR_SPAN_S of
-#: their unix time, or of vehicle time (a sped-up SITL crosses that first).
-ANCHOR_MIN_SAMPLES = 3
-ANCHOR_SPAN_S = 2.0
+#: their unix time (on SITL the host's seconds, which bound the rate's precision).
+ANCHOR_MIN_SAMPLES = 5
+ANCHOR_SPAN_S = 3.0
 
 
 def fit_boot_unix(samples: list[tuple[float, float]]) -> tuple[float, float]:
@@ -203,8 +205,7 @@ class VehicleTrack:
         if self._samples and boot_s <= self._samples[-1][1]:
             self._samples.clear()  # a reboot: start again
         self._samples.append((unix_s, boot_s))
-        first, last = self._samples[0], self._samples[-1]
-        span = max(last[0] - first[0], last[1] - first[1])
+        span = self._samples[-1][0] - self._samples[0][0]
         if len(self._samples) >= ANCHOR_MIN_SAMPLES and span >= ANCHOR_SPAN_S:
             self.offset_s, self.rate = fit_boot_unix(self._samples)
             self.offset_source = "SYSTEM_TIME"

@@ -90,16 +90,17 @@ def test_vehicle_track_clock_and_state() -> None:
     feed(mav, mav.system_time_encode(0, 1000))  # unix not set yet: ignored
     assert track.offset_s is None
     # SITL at speed factor 4: SYSTEM_TIME's unix runs 1x (the host's), boot time 4x.
-    feed(mav, mav.system_time_encode(int(1.7e15), 10_000))
-    feed(mav, mav.system_time_encode(int(1.7e15 + 1e6), 14_000))
-    assert track.offset_s is None  # two samples are not enough to fit
-    feed(mav, mav.system_time_encode(int(1.7e15 + 2e6), 18_000))
+    for k in range(3):
+        feed(mav, mav.system_time_encode(int(1.7e15 + k * 1e6), 10_000 + k * 4000))
+    assert track.offset_s is None  # 3 samples over 2 s are not enough to fit
+    feed(mav, mav.system_time_encode(int(1.7e15 + 3e6), 22_000))
+    assert track.offset_s is None
+    feed(mav, mav.system_time_encode(int(1.7e15 + 4e6), 26_000))
     # The vehicle's clock read 0 at unix 1.7e9 - 2.5: whoever listens, from whichever sample.
     assert track.offset_s == pytest.approx(1.7e9 - 2.5) and track.rate == pytest.approx(4.0)
     assert track.unix_of(14.0) == pytest.approx(1.7e9 + 11.5)  # linear in vehicle time
     late = VehicleTrack(3)
-    for unix_us, boot_ms in ((1.7e15 + 30e6, 130_000), (1.7e15 + 31e6, 134_000),
-                             (1.7e15 + 32e6, 138_000)):
+    for unix_us, boot_ms in ((1.7e15 + 30e6 + k * 1e6, 130_000 + k * 4000) for k in range(5)):
         for m in M.MAVLink(None).parse_buffer(
                 mav.system_time_encode(int(unix_us), boot_ms).pack(mav)) or []:
             late.handle(m)
