@@ -9,10 +9,11 @@ that the caller turns into heartbeats, STATUSTEXT and truth records. Timeouts th
 the ground station's reactions (offboard setpoint loss, pre-flight auto-disarm) use the wall
 time the caller passes in; physics, battery and landing use sim time.
 
-Behaviours mirrored from PX4 (see ARCHITECTURE.md "Real PX4 behaviours"): arming refused
+Behaviours mirrored from PX4 (sim/README.md says what was observed on PX4 SITL): arming refused
 without a GPS fix; auto-disarm when not taken off within COM_DISARM_PRFLT of arming and
 COM_DISARM_LAND after landing; takeoff to MIS_TAKEOFF_ALT then hold; offboard only with a
-fresh setpoint and hold after COM_OF_LOSS_T without one; RTL climbs to RTL_RETURN_ALT (or
+fresh setpoint and, after COM_OF_LOSS_T without one, COM_OBL_RC_ACT (position mode, which
+without RC falls back to NAV_RCL_ACT: return, as PX4 SITL does); RTL climbs to RTL_RETURN_ALT (or
 stays higher), returns at MPC_XY_CRUISE, lands; speed capped by MPC_XY_VEL_MAX; battery
 critical -> RTL and emergency -> land; geofence breach -> GF_ACTION. STATUSTEXT wordings
 are PX4's (``sim.px4_texts``); mode changes are silent, as on PX4.
@@ -114,6 +115,8 @@ class Autopilot:
         self.has_flown = False
         self.failsafe = False
         """A failsafe chose the current mode (HEARTBEAT system_status CRITICAL, as PX4)."""
+        self.rc_available = False
+        """A pilot's RC transmitter is connected (from a pilot takeover on)."""
         self.events: list[Event] = []
         self._setpoint: Setpoint | None = None
         self._setpoint_wall_s = -math.inf
@@ -312,6 +315,7 @@ class Autopilot:
         (commander's ACTION_SWITCH_MODE sends no STATUSTEXT on success; HEARTBEAT shows it).
         POSCTL/ALTCTL with centred sticks brake and hold; LAND lands and auto-disarms."""
         self.failsafe = False
+        self.rc_available = True
         if mode == modes.LAND:
             s = self.state
             self._hold_target = (s.east_m, s.north_m, 0.0)
@@ -381,11 +385,21 @@ class Autopilot:
 
     def _supervise(self, now_wall_s: float) -> None:
         if self.mode == modes.OFFBOARD and not self.offboard_setpoint_fresh(now_wall_s):
-            self._failsafe(modes.HOLD, "offboard_lost")
+            self._failsafe(self._offboard_loss_mode(), "offboard_lost")
         prflt = self.params["COM_DISARM_PRFLT"]
         if (self.armed and not self._left_ground_since_arming and prflt > 0.0
                 and now_wall_s - self._armed_wall_s > prflt):
             self.disarm(reason=texts.DISARMED_PREFLIGHT)
+
+    def _offboard_loss_mode(self) -> PX4Mode:
+        """PX4's failsafe for offboard loss (commander/failsafe/failsafe.cpp): COM_OBL_RC_ACT;
+        its manual fallbacks need RC, without which NAV_RCL_ACT decides (default: return)."""
+        act = int(self.params["COM_OBL_RC_ACT"])
+        if act in (0, 1, 2):
+            if self.rc_available:
+                return modes.POSCTL if act == 0 else modes.ALTCTL
+            act = {1: 5, 2: 3, 3: 4}.get(int(self.params["NAV_RCL_ACT"]), 5)
+        return {3: modes.RTL, 4: modes.LAND}.get(act, modes.HOLD)  # 5 hold; 6, 7 not simulated
 
     def _auto_speed(self, limits: Limits) -> float:
         speed = self._auto_speed_m_s or self.params["MPC_XY_CRUISE"]
