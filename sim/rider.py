@@ -99,6 +99,7 @@ class RadioRider:
                               mission.receiver.pulse_period_s, self.faults, self.truth,
                               self._unix_of, radio_rng)
         self._boot0: float | None = None
+        self._bound: tuple[str, int] = ("", 0)
         self._sim_s = 0.0
         self._next_vehicle_truth_s = 0.0
         self._transport: asyncio.DatagramTransport | None = None
@@ -187,6 +188,7 @@ class RadioRider:
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, self._stop.set)
         bound = transport.get_extra_info("sockname")
+        self._bound = (bound[0], bound[1])
         for f in self.ignored_faults:
             print(f"sim: --radios-only ignores the vehicle fault {f.kind} (the vehicle is real)",
                   file=sys.stderr)
@@ -298,9 +300,12 @@ class RadioRider:
 
     def _write_header(self) -> None:
         m, o, track = self.mission, self.options, self.track
+        ep = o.vehicle
         self.truth.write(
             self._unix_of(0.0), "sim", mission=m.name, seed=self.seed, mode="radios-only",
-            vehicle=str(o.vehicle), vehicle_sysid=track.sysid, start_unix=self._unix_of(0.0),
+            speedup=track.rate or 1.0, sysid=track.sysid or 0,
+            mavlink=[ep.host, ep.port], listen=list(self._bound),
+            vehicle=str(ep), vehicle_sysid=track.sysid, start_unix=self._unix_of(0.0),
             wall_start_unix=time.time(), clock=self._clock_info(),
             home={"lat_deg": m.home.lat_deg, "lon_deg": m.home.lon_deg, "alt_m": m.home.alt_m},
             vehicle_home=(None if track.home is None else
@@ -316,8 +321,14 @@ class RadioRider:
 
     def _vehicle_truth(self, sim_s: float, pose: PoseSample) -> None:
         e, n = self._en(pose)
+        track = self.track
         self.truth.write(
             self._unix_of(sim_s), "vehicle", east_m=round(e, 3), north_m=round(n, 3),
-            up_m=round(pose.rel_alt_m, 3), yaw_deg=round(pose.yaw_deg, 2), lat=pose.lat_deg,
-            lon=pose.lon_deg, alt_m=round(pose.alt_m, 3), boot_s=round(pose.boot_s, 3),
-            armed=self.track.armed, landed_state=self.track.landed_state)
+            up_m=round(pose.rel_alt_m, 3), v_east_m_s=round(pose.v_east_m_s, 3),
+            v_north_m_s=round(pose.v_north_m_s, 3), v_up_m_s=round(-pose.v_down_m_s, 3),
+            yaw_deg=round(pose.yaw_deg, 2), lat=pose.lat_deg, lon=pose.lon_deg,
+            alt_m=round(pose.alt_m, 3), mode=track.mode, armed=track.armed,
+            landed_state=track.landed_state_name,
+            battery=1.0 if track.battery is None else track.battery,
+            battery_known=track.battery is not None,
+            gps_ok=track.gps_ok is not False, link_down=False, boot_s=round(pose.boot_s, 3))

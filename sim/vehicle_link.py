@@ -27,6 +27,8 @@ from typing import Any, Literal
 
 import numpy as np
 
+from sim import px4_modes
+
 #: SYSTEM_TIME values below this (2001-09-09) mean "not set".
 MIN_VALID_UNIX_S = 1.0e9
 #: Pose samples kept, vehicle seconds.
@@ -88,6 +90,9 @@ class PoseSample:
     rel_alt_m: float
     """Above the vehicle's home."""
     yaw_deg: float
+    v_north_m_s: float = 0.0
+    v_east_m_s: float = 0.0
+    v_down_m_s: float = 0.0
 
 
 def _lerp_angle_deg(a: float, b: float, w: float) -> float:
@@ -138,13 +143,21 @@ class PoseHistory:
         if gap > MAX_GAP_S:
             return None
         w = (boot_s - a.boot_s) / gap
+
+        def lerp(x: float, y: float) -> float:
+            return x + w * (y - x)
+
         return PoseSample(
-            boot_s, a.lat_deg + w * (b.lat_deg - a.lat_deg),
-            a.lon_deg + w * (b.lon_deg - a.lon_deg), a.alt_m + w * (b.alt_m - a.alt_m),
-            a.rel_alt_m + w * (b.rel_alt_m - a.rel_alt_m), _lerp_angle_deg(a.yaw_deg, b.yaw_deg, w))
+            boot_s, lerp(a.lat_deg, b.lat_deg), lerp(a.lon_deg, b.lon_deg),
+            lerp(a.alt_m, b.alt_m), lerp(a.rel_alt_m, b.rel_alt_m),
+            _lerp_angle_deg(a.yaw_deg, b.yaw_deg, w), lerp(a.v_north_m_s, b.v_north_m_s),
+            lerp(a.v_east_m_s, b.v_east_m_s), lerp(a.v_down_m_s, b.v_down_m_s))
 
 
 _ARMED_FLAG = 128
+_CUSTOM_MODE_FLAG = 1
+_AUTOPILOT_PX4 = 12
+_LANDED_NAMES = {0: "UNDEFINED", 1: "ON_GROUND", 2: "IN_AIR", 3: "TAKEOFF", 4: "LANDING"}
 _LANDED_ON_GROUND = 1
 _LANDED_IN_AIR = 2
 _FLYING_REL_ALT_M = 1.0
@@ -170,6 +183,12 @@ class VehicleTrack:
         self.has_flown = False
         self.poses = PoseHistory()
         self.last_boot_s: float | None = None
+        self.mode = "UNKNOWN"
+        """PX4 mode name from HEARTBEAT (custom_mode), or ``custom:N`` for other autopilots."""
+        self.battery: float | None = None
+        """Remaining charge, fraction (SYS_STATUS), None until reported."""
+        self.gps_ok: bool | None = None
+        """GPS_RAW_INT fix type 3D or better; None until reported."""
         self._yaw_deg = 0.0
 
     def handle(self, msg: Any) -> None:
@@ -181,6 +200,7 @@ class VehicleTrack:
                 self.sysid = src
             if src == self.sysid and msg.get_srcComponent() == 1:
                 self.armed = bool(msg.base_mode & _ARMED_FLAG)
+                self.mode = _mode_name(msg)
             return
         if self.sysid is None or src != self.sysid:
             return
@@ -190,6 +210,11 @@ class VehicleTrack:
             self._position(msg)
         elif kind == "HOME_POSITION":
             self.home = (msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1e3)
+        elif kind == "SYS_STATUS":
+            if 0 <= msg.battery_remaining <= 100:
+                self.battery = msg.battery_remaining / 100.0
+        elif kind == "GPS_RAW_INT":
+            self.gps_ok = msg.fix_type >= 3
         elif kind == "EXTENDED_SYS_STATE":
             self.landed_state = int(msg.landed_state)
             if self.armed and self.landed_state == _LANDED_IN_AIR:
@@ -216,7 +241,8 @@ class VehicleTrack:
             self._yaw_deg = msg.hdg / 100.0
         yaw = self._yaw_deg
         sample = PoseSample(boot_s, msg.lat / 1e7, msg.lon / 1e7, msg.alt / 1e3,
-                            msg.relative_alt / 1e3, yaw)
+                            msg.relative_alt / 1e3, yaw, msg.vx / 100.0, msg.vy / 100.0,
+                            msg.vz / 100.0)
         if not (math.isfinite(sample.lat_deg) and -90.0 <= sample.lat_deg <= 90.0):
             return
         if self.poses.add(sample):
@@ -241,6 +267,10 @@ class VehicleTrack:
         return boot_s + self.offset_s
 
     @property
+    def landed_state_name(self) -> str:
+        return _LANDED_NAMES.get(self.landed_state, str(self.landed_state))
+
+    @property
     def landed_and_disarmed(self) -> bool:
         if self.armed:
             return False
@@ -249,3 +279,12 @@ class VehicleTrack:
         latest = self.poses.latest_s
         pose = self.poses.at(latest) if latest is not None else None
         return pose is not None and pose.rel_alt_m < _FLYING_REL_ALT_M
+
+
+def _mode_name(hb: Any) -> str:
+    if hb.autopilot == _AUTOPILOT_PX4 and hb.base_mode & _CUSTOM_MODE_FLAG:
+        try:
+            return px4_modes.name(px4_modes.decode(int(hb.custom_mode)))
+        except ValueError:
+            pass
+    return f"custom:{int(hb.custom_mode)}"

@@ -26,6 +26,7 @@ from mavsdk.asyncio.plugins.offboard import OffboardAsync, VelocityNedYaw
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync
 
 from mexgen_gcs.core.geo import LocalFrame
+from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, decode
 from sim.truth import read_truth
 from sim.vehicle_link import fit_boot_unix
@@ -101,7 +102,9 @@ async def test_radios_ride_on_px4(px4_factory: Px4Factory, tmp_path: Path) -> No
     finally:
         transport.close()
 
-    header, *_, end = read_truth(rider.truth_dir / "truth.jsonl")
+    truth_path = rider.truth_dir / "truth.jsonl"
+    assert not read_truth_file(truth_path).damage  # every record as documented
+    header, *_, end = read_truth(truth_path)
     assert header["mode"] == "radios-only" and header["vehicle_sysid"] == px4.sysid
     assert end["reason"] == "landed"
     clock = header["clock"]

@@ -19,6 +19,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink
 
 from mexgen_gcs.config import load_mission
+from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, decode
 from sim.__main__ import main as sim_main
 from sim.truth import read_truth
@@ -177,6 +178,8 @@ def test_radios_ride_on_the_simulators_vehicle(sim_factory: SimFactory, client: 
     got = [d for _, d in early + leg + rest]
     detections = [d for d in got if isinstance(d, Detection) and d.lat is not None]
     assert len(detections) > 20
+    for path in (sim.truth_path, rider.truth_dir / "truth.jsonl"):  # records as documented
+        assert not read_truth_file(path).damage, read_truth_file(path).damage.describe()
     sim_truth = read_truth(sim.truth_path)
     rider_truth = read_truth(rider.truth_dir / "truth.jsonl")
     header = rider_truth[0]
