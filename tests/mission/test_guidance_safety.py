@@ -43,7 +43,7 @@ LIM = SafetyLimits(max_mission_time_s=600, battery_rtl_percent=25, link_loss_tim
                    on_link_regained="resume", radio_heartbeat_timeout_s=3,
                    radio_loss_timeout_s=15)
 OK = SafetyInputs(elapsed_s=10, battery_percent=90, link_age_s=0.1, link_connected=True,
-                  radio_silent_s=0.5, flight_mode="OFFBOARD", link_was_lost=False)
+                  radio_silent_s=0.5, link_was_lost=False)
 
 
 
@@ -63,7 +63,6 @@ def _inp(**kw):
     ({"link_was_lost": True}, Action.RESUME_OFFBOARD, "link_regained_resume"),
     ({"radio_silent_s": 5.0}, Action.HOLD, "radio_silent"),
     ({"radio_silent_s": 16.0}, Action.RTL, "radio_lost"),
-    ({"flight_mode": "RETURN_TO_LAUNCH"}, Action.RTL, "vehicle_failsafe_return_to_launch"),
 ])
 def test_safety_rules(change, action, reason):
     d = decide(_inp(**change), LIM)

@@ -117,7 +117,7 @@ def test_moving_tag_is_followed(tmp_path):
 
 
 @pytest.mark.parametrize(("fault", "overrides", "expect"), [
-    ("link_drop", {"sim.faults": [{"kind": "link_drop", "at_s": 40.0, "duration_s": 6.0}],
+    ("link_drop", {"sim.faults": [{"kind": "link_drop", "at_s": 90.0, "duration_s": 6.0}],
                    "safety.max_mission_time_s": 120.0},
      {"safety", "offboard_resumed"}),
     ("radio_silence", {"sim.faults": [{"kind": "radio_silence", "at_s": 30.0,
