@@ -52,11 +52,15 @@ class LandedState(IntEnum):
 
 @dataclass(frozen=True, slots=True)
 class Event:
-    """Something the operator should hear about. ``severity`` is MAV_SEVERITY (6 info)."""
+    """Something that happened to the vehicle. ``severity`` is MAV_SEVERITY (6 info).
+
+    ``announce``: PX4 sends this text as STATUSTEXT; otherwise it is only logged (truth).
+    """
 
     kind: str
     text: str
     severity: int = 6
+    announce: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,8 +134,8 @@ class Autopilot:
             max_yaw_rate_deg_s=self.airframe.max_yaw_rate_deg_s,
         )
 
-    def _emit(self, kind: str, text: str, severity: int = 6) -> None:
-        self.events.append(Event(kind, text, severity))
+    def _emit(self, kind: str, text: str, severity: int = 6, announce: bool = True) -> None:
+        self.events.append(Event(kind, text, severity, announce))
 
     def _set_mode(self, mode: PX4Mode) -> None:
         if mode in _HOLD_LIKE:
@@ -245,6 +249,20 @@ class Autopilot:
         if mode[0] in _MANUAL_MODES:
             self._emit("mode_denied", f"{modes.name(mode)} denied: no manual control input", 4)
         return Result.DENIED  # MISSION (none uploaded), manual modes, READY, FOLLOW, ...
+
+    def pilot_switch(self, mode: PX4Mode) -> None:
+        """The pilot moves the RC mode switch: PX4 changes mode at once and says nothing
+        (commander's ACTION_SWITCH_MODE sends no STATUSTEXT on success; HEARTBEAT shows it).
+        POSCTL/ALTCTL with centred sticks brake and hold; LAND lands and auto-disarms."""
+        if mode == modes.LAND:
+            s = self.state
+            self._hold_target = (s.east_m, s.north_m, 0.0)
+        if mode in _HOLD_LIKE:
+            self._hold_target = stopping_point(self.state, self.limits(), self.in_air)
+            self._hold_speed_m_s = None
+        if mode != self.mode:
+            self.mode = mode
+            self._emit("pilot", f"RC mode switch: {modes.name(mode)}", announce=False)
 
     def reposition(self, target_enu_m: tuple[float, float, float], speed_m_s: float | None
                    ) -> Result:

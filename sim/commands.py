@@ -86,6 +86,7 @@ class CommandHandler:
                 result = Result.DENIED
         self.v.send(self.v.mav.command_ack_encode(
             cmd.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        self.v.command_done(cmd.command, int(result))
 
     # -- helpers ------------------------------------------------------------------------------
 

@@ -38,6 +38,7 @@ from sim.scenario import (
     initial_params,
     seed_of,
 )
+from sim.takeover import NO_TAKEOVER, TakeoverLog, pilot_mode
 from sim.truth import TruthWriter
 from sim.vehicle import MavlinkVehicle
 
@@ -77,8 +78,10 @@ class Simulation:
                                    mission.sim.battery_endurance_s)
         self._mav_transport: asyncio.DatagramTransport | None = None
         targets = [options.mavlink] + ([options.gcs] if options.gcs else [])
+        self.takeover: TakeoverLog | None = None
         self.vehicle = MavlinkVehicle(self.autopilot, self.clock, self.frame, self._mav_sendto,
-                                      targets, options.sysid, on_fence=self._fence_accepted)
+                                      targets, options.sysid, on_fence=self._fence_accepted,
+                                      on_command=self._command_received)
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
                               self.clock.unix_of, radio_rng)
@@ -130,7 +133,8 @@ class Simulation:
                 loop.remove_signal_handler(sig)
             self.truth.write(self.clock.unix(), "end", sim_s=round(self.clock.sim_s, 3),
                              reason="signal" if self._stop.is_set() else "landed",
-                             radio=self.radio.stats, mavlink=self.vehicle.stats)
+                             radio=self.radio.stats, mavlink=self.vehicle.stats,
+                             **self._takeover_counts())
             self.truth.close()
             transport.close()
             self._radio_sock.close()
@@ -180,7 +184,10 @@ class Simulation:
         return ReceiverPose(s.east_m, s.north_m, s.up_m, s.yaw_deg, None, None, None)
 
     def _apply_fault(self, what: str, fault: Fault) -> None:
-        self.truth.write(self.clock.unix(), "fault", phase=what, **fault.describe())
+        extra: dict[str, Any] = {}
+        if fault.kind == "pilot_takeover":
+            extra = self._pilot(what, fault)
+        self.truth.write(self.clock.unix(), "fault", phase=what, **fault.describe(), **extra)
         print(f"sim: fault {fault.kind} {what} at sim {self.clock.sim_s:.1f} s", file=sys.stderr,
               flush=True)
         if fault.kind == "link_drop":
@@ -190,6 +197,34 @@ class Simulation:
         elif fault.kind == "battery_sag" and what == "start":
             ap = self.autopilot
             ap.battery_fraction = max(0.0, ap.battery_fraction - fault.percent / 100.0)
+
+    def _pilot(self, what: str, fault: Fault) -> dict[str, Any]:
+        """The pilot's RC mode switch; returns fields for the fault record."""
+        ap = self.autopilot
+        before = px4_modes.name(ap.mode)
+        if what == "start":
+            stats = self.vehicle.stats
+            self.takeover = TakeoverLog(fault, stats["rx_commands"], stats["rx_setpoints"])
+            ap.pilot_switch(pilot_mode(fault))
+        else:
+            ap.pilot_switch(px4_modes.LAND)
+            if self.takeover is not None:
+                self.takeover.landed_by_pilot = True
+        return {"mode_before": before, "mode_after": px4_modes.name(ap.mode),
+                **self._takeover_counts()}
+
+    def _takeover_counts(self) -> dict[str, Any]:
+        if self.takeover is None:
+            return dict(NO_TAKEOVER)
+        return self.takeover.counts(self.vehicle.stats)
+
+    def _command_received(self, command: int, result: int) -> None:
+        if self.takeover is None:
+            return
+        name = self.takeover.note_command(command)
+        self.truth.write(self.clock.unix(), "event", kind="gcs_command_after_takeover",
+                         text=f"{name} -> {result}", command=command, name=name, result=result,
+                         mode=px4_modes.name(self.autopilot.mode))
 
     # -- truth -----------------------------------------------------------------------------
 
