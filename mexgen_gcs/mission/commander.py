@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from mexgen_gcs.io.vehicle import Telemetry, Vehicle
@@ -32,7 +32,8 @@ UNKNOWN_MODES = frozenset({"UNKNOWN", "READY", ""})
 
 @dataclass(frozen=True, slots=True)
 class Expectation:
-    """Modes the GCS commanded, plus the previous ones for a moment while the change lands."""
+    """Modes the GCS commanded, plus the previous ones while the change lands: until the
+    vehicle first reports a commanded mode, or `grace_until_mono` at the latest."""
 
     modes: frozenset[str]
     grace_modes: frozenset[str] = frozenset()
@@ -83,6 +84,7 @@ class Commander:
         self.seen_armed = False
         self.counts = CommandLog()
         self.last_setpoint_mono = -float("inf")
+        self.last_command_mono = -float("inf")
 
     # -- expectations ------------------------------------------------------------------------
 
@@ -101,6 +103,9 @@ class Commander:
             self.seen_armed = True
         if not self.in_control:
             return None
+        exp = self.expectation
+        if exp is not None and exp.grace_modes and tel.flight_mode in exp.modes:
+            self.expectation = replace(exp, grace_modes=frozenset())  # the change has landed
         return judge(self.expectation, tel, self.seen_armed, self._monotonic())
 
     def release(self) -> None:
@@ -125,6 +130,13 @@ class Commander:
 
     def _sent(self, what: str) -> None:
         self.counts.sent[what] = self.counts.sent.get(what, 0) + 1
+        self.last_command_mono = self._monotonic()
+
+    def may_be_armed(self) -> bool:
+        """Armed as far as anyone knows: telemetry says so, or an arm command went out
+        (telemetry's armed flag lags the command by up to a heartbeat)."""
+        tel = self.vehicle.hub.latest
+        return tel.armed or tel.in_air or "arm" in self.counts.sent
 
     async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool:
         if not self._allowed("upload_geofence", False):
@@ -136,6 +148,7 @@ class Commander:
     async def arm(self) -> bool:
         if not self._allowed("arm", False):
             return False
+        self.counts.sent.setdefault("arm", 0)  # from here on the vehicle may be armed
         await self.vehicle.arm()
         self._sent("arm")
         return True

@@ -195,9 +195,9 @@ class MissionContext:
             self.commander.expectation = None  # until the link rules resume or return
             return
         self.commander.release()
-        reasons = [f"[{s.severity}] {s.text}" for s in self.vehicle.hub.recent_status_text(10.0)]
         info = TakeoverInfo(self.clock.now(), tel.flight_mode, tel.armed,
-                            "; ".join(reasons[-5:]) or what, self.phase)
+                            takeover_reason(what, self.vehicle.hub.recent_status_text(10.0)),
+                            self.phase)
         if self.takeover is None:
             self.takeover = info
         self.state = MissionState.TAKEOVER
@@ -219,3 +219,14 @@ class MissionContext:
 
     def mission_elapsed_s(self, t: float) -> float:
         return t - (self.t_airborne if self.t_airborne is not None else self.t_start)
+
+
+SERIOUS = frozenset({"warning", "error", "critical", "alert", "emergency"})
+
+
+def takeover_reason(what: str, recent: list[Any]) -> str:
+    """What the GCS saw, plus what the autopilot said: its recent warnings and worse, else
+    its last few messages."""
+    serious = [st for st in recent if st.severity in SERIOUS]
+    said = [f"[{st.severity}] {st.text}" for st in (serious or recent)[-3:]]
+    return what + ("; autopilot: " + " | ".join(said) if said else "")

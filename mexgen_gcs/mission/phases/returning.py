@@ -13,29 +13,36 @@ from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Coroutine
+from typing import Any
 
 from mexgen_gcs.errors import VehicleError
+from mexgen_gcs.mission.commander import OFFBOARD
 from mexgen_gcs.mission.context import MissionContext
-from mexgen_gcs.mission.phases.common import hold_while_offboard
+from mexgen_gcs.mission.phases.common import SETPOINT_HZ, hold_while_offboard
 from mexgen_gcs.mission.state import MissionState, ReturnAction, StopRequest
 
 COMMAND_ATTEMPTS = 3
-POLL_S = 0.1
+FRESH_AFTER_COMMAND_S = 1.2
+"""Telemetry this much newer than the last command shows its effect (PX4's heartbeat, which
+carries the armed flag, comes once a second)."""
+RETRY_EVERY_S = 2.0
+"""Wall seconds between retries of a return (or land) that has not gone through."""
 
 
 async def run(ctx: MissionContext, action: ReturnAction) -> None:
     ctx.phase = "return"
-    hub = ctx.vehicle.hub
+    commanded = False
     if not ctx.commander.in_control:
         action = ReturnAction.NONE
         ctx.state = MissionState.TAKEOVER
-    elif not (hub.latest.armed or hub.latest.in_air):
+    elif not ctx.commander.may_be_armed():
         ctx.event("on_the_ground", action="none")
         action = ReturnAction.NONE
     if action is not ReturnAction.NONE:
         ctx.state = MissionState.RETURNING
-        await _safely(ctx, command(ctx, action))
-    await watch_landing(ctx, action)
+        commanded = bool(await _safely(ctx, command(ctx, action)))
+    await watch_landing(ctx, action, commanded)
 
 
 async def command(ctx: MissionContext, action: ReturnAction, *, operator: bool = False,
@@ -60,17 +67,21 @@ async def command(ctx: MissionContext, action: ReturnAction, *, operator: bool =
     return False
 
 
-async def watch_landing(ctx: MissionContext, action: ReturnAction) -> None:
+async def watch_landing(ctx: MissionContext, action: ReturnAction, commanded: bool) -> None:
+    """Wait for landed and disarmed (bounded). Meanwhile: hold setpoints while the vehicle is
+    still in offboard (and retry a command that has not gone through), follow the operator,
+    re-command once after a fault, and stand back after a takeover."""
     hub = ctx.vehicle.hub
     loop = asyncio.get_running_loop()
     seen_stop: StopRequest | None = ctx.stop
     faults_seen = ctx.faults
     recommanded = False
     waited_vehicle_s = 0.0
-    last = loop.time()
+    last = last_try = loop.time()
     while True:
         tel = hub.latest
-        if not tel.armed and not tel.in_air:
+        fresh = tel.updated_wall - ctx.commander.last_command_mono > FRESH_AFTER_COMMAND_S
+        if not tel.armed and not tel.in_air and fresh:
             ctx.state = MissionState.LANDED
             ctx.landed_ok = True
             ctx.event("landed_and_disarmed")
@@ -83,7 +94,7 @@ async def watch_landing(ctx: MissionContext, action: ReturnAction) -> None:
                 if seen_stop.action is ReturnAction.LAND or action is not ReturnAction.LAND:
                     action = seen_stop.action  # never a return over the operator's land
                     ctx.state = MissionState.RETURNING
-                    await _safely(ctx, command(ctx, action, operator=True))
+                    commanded = bool(await _safely(ctx, command(ctx, action, operator=True)))
             elif not ctx.commander.in_control:
                 ctx.event("stopped_waiting", level=logging.WARNING, reason=seen_stop.reason,
                           note="the autopilot has control; the GCS exits without commanding")
@@ -93,8 +104,14 @@ async def watch_landing(ctx: MissionContext, action: ReturnAction) -> None:
             if not recommanded and ctx.commander.in_control and action is not ReturnAction.NONE:
                 recommanded = True
                 ctx.event("return_recommanded", level=logging.WARNING, action=action)
-                await _safely(ctx, command(ctx, action, attempts=1))
-        await asyncio.sleep(POLL_S)
+                commanded = bool(await _safely(ctx, command(ctx, action, attempts=1)))
+        if ctx.commander.in_control and action is not ReturnAction.NONE and (
+                tel.flight_mode == OFFBOARD):
+            await _safely(ctx, hold_while_offboard(ctx, 1.0 / SETPOINT_HZ))
+            if not commanded and loop.time() - last_try >= RETRY_EVERY_S:
+                last_try = loop.time()
+                commanded = bool(await _safely(ctx, command(ctx, action, attempts=1)))
+        await asyncio.sleep(1.0 / SETPOINT_HZ)
         now = loop.time()
         waited_vehicle_s += (now - last) * ctx.clock.rate
         last = now
@@ -104,9 +121,10 @@ async def watch_landing(ctx: MissionContext, action: ReturnAction) -> None:
             return
 
 
-async def _safely(ctx: MissionContext, coro: object) -> None:
+async def _safely(ctx: MissionContext, coro: Coroutine[Any, Any, Any]) -> Any:
     """Run a command coroutine; an unexpected exception is a fault, not the end of the wait."""
     try:
-        await coro  # type: ignore[misc]
+        return await coro
     except Exception as exc:
         ctx.fault("return", exc)
+        return None
