@@ -22,8 +22,8 @@ from mexgen_gcs.errors import PlannerError, VehicleError
 from mexgen_gcs.mission import safety
 from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.guidance import (
+    LATENCY_S,
     PX4_MPC_ACC_HOR_M_S2,
-    REACTION_S,
     Setpoint,
     velocity_setpoint,
 )
@@ -188,10 +188,9 @@ async def setpoints(ctx: MissionContext) -> None:
         if not all(map(math.isfinite, en)):
             sp = Setpoint(0.0, 0.0, 0.0, tel.yaw_deg, "hold")
         else:
-            reaction = REACTION_S + ctx.clock.rate / SETPOINT_HZ
             sp = velocity_setpoint(heading, speed, en, rel_alt, alt, ctx.area, tel.yaw_deg,
                                    (tel.v_east_m_s, tel.v_north_m_s), brake_m_s2=brake,
-                                   reaction_s=reaction)
+                                   latency_s=LATENCY_S, period_s=ctx.clock.rate / SETPOINT_HZ)
             ctx.track.append(en)
         if ctx.state in (MissionState.SEARCHING, MissionState.HOLDING):
             ctx.state = MissionState.HOLDING if sp.reason == "hold" else MissionState.SEARCHING
