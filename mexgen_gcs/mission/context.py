@@ -224,9 +224,11 @@ class MissionContext:
 SERIOUS = frozenset({"warning", "error", "critical", "alert", "emergency"})
 
 
-def takeover_reason(what: str, recent: list[Any]) -> str:
-    """What the GCS saw, plus what the autopilot said: its recent warnings and worse, else
-    its last few messages."""
+def takeover_reason(what: str, recent: list[Any], info_within_s: float = 3.0) -> str:
+    """What the GCS saw, plus what the autopilot said: its warnings and worse of the last ten
+    seconds, else its messages of the last few seconds."""
     serious = [st for st in recent if st.severity in SERIOUS]
-    said = [f"[{st.severity}] {st.text}" for st in (serious or recent)[-3:]]
+    newest = max((st.mono_s for st in recent), default=0.0)
+    latest = [st for st in recent if st.mono_s >= newest - info_within_s]
+    said = [f"[{st.severity}] {st.text}" for st in (serious or latest)[-3:]]
     return what + ("; autopilot: " + " | ".join(said) if said else "")
