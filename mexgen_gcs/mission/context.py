@@ -12,6 +12,7 @@ import asyncio
 import collections
 import logging
 import math
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -228,7 +229,7 @@ def takeover_reason(what: str, recent: list[Any], info_within_s: float = 3.0) ->
     """What the GCS saw, plus what the autopilot said: its warnings and worse of the last ten
     seconds, else its messages of the last few seconds."""
     serious = [st for st in recent if st.severity in SERIOUS]
-    newest = max((st.mono_s for st in recent), default=0.0)
-    latest = [st for st in recent if st.mono_s >= newest - info_within_s]
+    now = time.monotonic()
+    latest = [st for st in recent if st.mono_s >= now - info_within_s]
     said = [f"[{st.severity}] {st.text}" for st in (serious or latest)[-3:]]
     return what + ("; autopilot: " + " | ".join(said) if said else "")

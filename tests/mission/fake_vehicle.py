@@ -57,7 +57,7 @@ class CommandRecord:
 @dataclass
 class FakeVehicle:
     frame: LocalFrame
-    rate: float = 10.0
+    rate: float = 20.0
     home_en_m: tuple[float, float] = (0.0, 0.0)
     home_alt_amsl_m: float = 100.0
     script: list[Scripted] = field(default_factory=list)

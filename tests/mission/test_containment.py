@@ -148,8 +148,8 @@ async def test_a_failing_view_never_stops_the_flight(tmp_path, monkeypatch):
 
 
 async def test_a_late_planner_is_skipped_never_queued(tmp_path, monkeypatch):
-    """Each plan takes 1.5 s of wall time, the interval is 0.5 s (5 s of vehicle time at
-    10x): due plans are skipped while one runs, the worker never has a queue, the vehicle
+    """Each plan takes 1.5 s of wall time, the interval is 0.25 s (5 s of vehicle time at
+    20x): due plans are skipped while one runs, the worker never has a queue, the vehicle
     holds meanwhile."""
     running = []
     overlaps = []

@@ -38,8 +38,8 @@ def _assert_takeover(f, mode: str, reason_part: str) -> None:
 ])
 async def test_a_mode_the_gcs_did_not_command_stops_every_command(tmp_path, mode, text,
                                                                    reason_part):
-    fake = _vehicle(Scripted("offboard", 10.0, lambda v: v.set_mode(mode, text)),
-                    Scripted("offboard", 25.0, lambda v: v.set_mode("LAND")))
+    fake = _vehicle(Scripted("offboard", 20.0, lambda v: v.set_mode(mode, text)),
+                    Scripted("offboard", 35.0, lambda v: v.set_mode("LAND")))
     f = await fly(tmp_path / "log", fake)
     _assert_takeover(f, mode, reason_part)
     # setpoints stopped at once: none reached the vehicle once it had left offboard
