@@ -27,7 +27,8 @@ RTL = "RETURN_TO_LAUNCH"
 LAND = "LAND"
 PILOT_MODES = frozenset({"MANUAL", "ALTCTL", "POSCTL", "ACRO", "STABILIZED", "RATTITUDE"})
 UNKNOWN_MODES = frozenset({"UNKNOWN", "READY", ""})
-"""Modes that say nothing (no telemetry yet, or PX4's pre-arm READY)."""
+"""Modes that say nothing before the vehicle is seen armed (no telemetry yet, PX4's pre-arm
+READY); in flight a mode MAVSDK cannot name is a mode the GCS did not command."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,7 +53,7 @@ def judge(exp: Expectation | None, tel: Telemetry, seen_armed: bool, now_mono: f
             return None
         return "disarmed in flight"
     mode = tel.flight_mode
-    if mode in UNKNOWN_MODES or mode in exp.modes:
+    if mode in exp.modes or (mode in UNKNOWN_MODES and not seen_armed):
         return None
     if mode in exp.grace_modes and now_mono <= exp.grace_until_mono:
         return None

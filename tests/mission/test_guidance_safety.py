@@ -136,7 +136,8 @@ def test_guidance_keeps_a_simulated_flight_inside_the_area():
     ("HOLD", True, True, False, True),       # geofence hold
     ("POSCTL", True, True, True, True),      # a pilot, even during the grace
     ("RETURN_TO_LAUNCH", True, True, False, True),
-    ("UNKNOWN", True, True, False, False),
+    ("UNKNOWN", True, False, False, False),  # no mode yet, before it is seen armed
+    ("UNKNOWN", True, True, False, True),    # in flight: a mode MAVSDK cannot name
     ("OFFBOARD", False, True, False, True),  # disarmed in flight
     ("OFFBOARD", False, False, False, False),  # never seen armed yet: telemetry lags
 ])
