@@ -4,9 +4,12 @@ The mission runs on the VEHICLE's clock. A real aircraft's clock runs at wall sp
 simulated autopilot run faster than real time does not (PX4 SITL at speed factor K runs about
 0.96 K, the project's simulator exactly K), so the mission measures it: ``VehicleClock`` takes
 the autopilot's SYSTEM_TIME (MAVSDK ``telemetry.unix_epoch_time``), stamps each sample with
-``time.monotonic()`` on arrival and fits ``vehicle = offset + rate * monotonic`` by least
-squares over a sliding window. Re-planning, the filter cadence, time limits, timeouts and
-every logged ``t`` then live on one time base with the detections' own timestamps.
+``time.monotonic()`` on arrival and fits ``vehicle = offset + rate * monotonic``: the rate by
+least squares over a sliding window, the offset through the newest sample (a simulated clock
+that stalls under CPU load drops time in steps, PX4 lockstep SITL runs at whatever rate the
+CPU allows: the newest sample says where it is now). Re-planning, the filter cadence, time
+limits, timeouts and every logged ``t`` then live on one time base with the detections' own
+timestamps.
 
 ``rate`` is vehicle seconds per wall second; ``sleep(dt)`` sleeps ``dt / rate`` wall seconds.
 Durations are always measured on ``time.monotonic`` (never ``time.time``, which can jump):
@@ -71,7 +74,10 @@ class WallClock:
 class VehicleClock:
     """The vehicle's clock estimated from its time messages (see the module docstring).
 
-    ``fixed_rate``: a known rate (``--time-scale K``); then only the offset is fitted. Before
+    ``fixed_rate``: a known rate (``--time-scale K``); then only the offset is fitted.
+    ``window_s`` wall seconds of samples fit the rate; the offset goes through the upper
+    envelope of the last ``anchor_samples`` (arrivals are only ever late; 1 = the newest).
+    Before
     the first sample the clock is the wall clock (at ``fixed_rate`` if given) and ``source``
     says so; once ``min_samples`` spanning ``min_span_s`` wall seconds have arrived it is
     ``synced``. A sample further than ``jump_s`` vehicle seconds from the fit (the vehicle set
@@ -83,8 +89,9 @@ class VehicleClock:
         self,
         *,
         fixed_rate: float | None = None,
-        window_s: float = 60.0,
+        window_s: float = 20.0,
         max_samples: int = 120,
+        anchor_samples: int = 1,
         min_samples: int = 3,
         min_span_s: float = 1.0,
         jump_s: float = 5.0,
@@ -98,6 +105,7 @@ class VehicleClock:
         self.min_samples = max(1 if fixed_rate is not None else 2, min_samples)
         self.min_span_s = 0.0 if fixed_rate is not None else min_span_s
         self.jump_s = jump_s
+        self.anchor_samples = anchor_samples
         self._monotonic = monotonic
         self._mono0 = monotonic()
         self._unix0 = unix()
@@ -177,10 +185,10 @@ class VehicleClock:
                 return
         else:
             rate = self._rate  # too few samples for a rate yet: offset only
-        offset_at_ref = float(np.mean(v - rate * (m - m_ref)))
+        at_ref = v - rate * (m - m_ref)  # each sample's vehicle time at m_ref
+        self.residual_rms_s = float(np.std(at_ref))
         self._rate = rate
-        self._offset = offset_at_ref - rate * m_ref
-        self.residual_rms_s = float(np.sqrt(np.mean((v - self._predict(m)) ** 2)))
+        self._offset = float(np.max(at_ref[-self.anchor_samples:])) - rate * m_ref
         self._synced = len(arr) >= self.min_samples and span >= self.min_span_s
 
     def _predict(self, mono_s: float | np.ndarray) -> float | np.ndarray:

@@ -65,6 +65,22 @@ def test_fallback_is_wall_time_and_says_so():
     assert fixed.now() - t0 == pytest.approx(10.0)  # the fixed rate applies before samples
 
 
+def test_a_stalled_simulator_is_followed_at_the_next_sample():
+    """A simulated vehicle at 20x stalls and drops 3 s of its time (its tick loop was late):
+    one sample later the mission clock is back on it, and it keeps the rate."""
+    mono = FakeMonotonic()
+    clock = VehicleClock(monotonic=mono)
+    _feed(clock, mono, 20.0, 15)
+    v = 1.7e9 + 20.0 * 14
+    mono.t += 1.0
+    v += 20.0 - 3.0  # the stall
+    clock.observe(v, mono.t)
+    assert abs(clock.now() - v) < 1e-6
+    mono.t += 0.5
+    assert clock.now() == pytest.approx(v + clock.rate * 0.5)
+    assert clock.rate == pytest.approx(20.0, rel=0.03)
+
+
 def test_one_sample_gives_the_offset_two_close_ones_no_rate_yet():
     mono = FakeMonotonic()
     clock = VehicleClock(monotonic=mono)
