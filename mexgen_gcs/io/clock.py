@@ -5,11 +5,12 @@ simulated autopilot run faster than real time does not (PX4 SITL at speed factor
 0.96 K, the project's simulator exactly K), so the mission measures it: ``VehicleClock`` takes
 the autopilot's SYSTEM_TIME (MAVSDK ``telemetry.unix_epoch_time``), stamps each sample with
 ``time.monotonic()`` on arrival and fits ``vehicle = offset + rate * monotonic``: the rate by
-least squares over a sliding window, the offset through the newest sample (a simulated clock
-that stalls under CPU load drops time in steps, PX4 lockstep SITL runs at whatever rate the
-CPU allows: the newest sample says where it is now). Re-planning, the filter cadence, time
-limits, timeouts and every logged ``t`` then live on one time base with the detections' own
-timestamps.
+least squares over a sliding window, the offset through the upper envelope of the newest two
+samples (an arrival is only ever late, so one late sample does not drag the clock back; a
+simulated clock that stalls under CPU load drops time in steps, PX4 lockstep SITL runs at
+whatever rate the CPU allows: the newest samples say where it is now). Re-planning, the
+filter cadence, time limits, timeouts and every logged ``t`` then live on one time base with
+the detections' own timestamps.
 
 ``rate`` is vehicle seconds per wall second; ``sleep(dt)`` sleeps ``dt / rate`` wall seconds.
 Durations are always measured on ``time.monotonic`` (never ``time.time``, which can jump):
@@ -91,7 +92,7 @@ class VehicleClock:
         fixed_rate: float | None = None,
         window_s: float = 20.0,
         max_samples: int = 120,
-        anchor_samples: int = 1,
+        anchor_samples: int = 2,
         min_samples: int = 3,
         min_span_s: float = 1.0,
         jump_s: float = 5.0,

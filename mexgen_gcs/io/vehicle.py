@@ -123,9 +123,10 @@ class TelemetryHub:
             listener(st)
         return st
 
-    def time_sample(self, vehicle_unix_s: float) -> None:
-        """One SYSTEM_TIME sample: tell the listeners with its arrival time."""
-        mono = time.monotonic()
+    def time_sample(self, vehicle_unix_s: float, mono_s: float | None = None) -> None:
+        """One SYSTEM_TIME sample: tell the listeners with its arrival time (now, unless the
+        receiver stamped it earlier)."""
+        mono = time.monotonic() if mono_s is None else mono_s
         for listener in self.on_time:
             listener(vehicle_unix_s, mono)
 
@@ -287,9 +288,32 @@ class MavsdkVehicle:
             self.hub.status_text(severity, str(getattr(st, "text", "")))
 
     async def _pump_time(self, tel: Any) -> None:
-        """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds."""
-        async for time_us in tel.subscribe_unix_epoch_time():
-            self.hub.time_sample(float(time_us) / 1e6)
+        """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds, stamped on
+        arrival in MAVSDK's own thread (so a busy event loop does not delay the stamp); the
+        public async stream, stamped in the loop, if the native plugin is not reachable."""
+        native = getattr(tel, "_plugin", None)
+        if native is None or not hasattr(native, "subscribe_unix_epoch_time"):
+            async for time_us in tel.subscribe_unix_epoch_time():
+                self.hub.time_sample(float(time_us) / 1e6)
+            return
+        loop = asyncio.get_running_loop()
+        queue: asyncio.Queue[tuple[float, float]] = asyncio.Queue(maxsize=64)
+
+        def put(item: tuple[float, float]) -> None:
+            if not queue.full():
+                queue.put_nowait(item)
+
+        def callback(time_us: Any, _user_data: Any) -> None:  # MAVSDK's thread
+            loop.call_soon_threadsafe(put, (float(time_us) / 1e6, time.monotonic()))
+
+        handle = native.subscribe_unix_epoch_time(callback)
+        try:
+            while True:
+                unix_s, mono_s = await queue.get()
+                self.hub.time_sample(unix_s, mono_s)
+        finally:
+            with contextlib.suppress(Exception):
+                native.unsubscribe_unix_epoch_time(handle)
 
     async def _pump_connection(self) -> None:
         async for connected in self._system.is_connected_state():
