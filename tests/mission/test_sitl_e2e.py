@@ -142,11 +142,11 @@ def test_moving_tag_is_followed(tmp_path):
     ("link_drop", {"sim.faults": [{"kind": "link_drop", "at_s": 90.0, "duration_s": 6.0}],
                    "safety.max_mission_time_s": 120.0},
      {"safety", "offboard_resumed"}),
-    ("radio_silence", {"sim.faults": [{"kind": "radio_silence", "at_s": 30.0,
+    ("radio_silence", {"sim.faults": [{"kind": "radio_silence", "at_s": 90.0,
                                        "duration_s": 600.0}],
                        "safety.radio_loss_timeout_s": 15.0},
      {"safety", "mission_end", "landed_and_disarmed"}),
-    ("battery_sag", {"sim.faults": [{"kind": "battery_sag", "at_s": 30.0, "percent": 70.0}]},
+    ("battery_sag", {"sim.faults": [{"kind": "battery_sag", "at_s": 90.0, "percent": 70.0}]},
      {"mission_end", "landed_and_disarmed"}),
 ])
 def test_faults_lead_to_safe_logged_actions(tmp_path, fault, overrides, expect):

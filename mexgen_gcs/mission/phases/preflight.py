@@ -115,10 +115,13 @@ def check_home(ctx: MissionContext) -> None:
 
 
 async def wait_for_radio(ctx: MissionContext) -> None:
+    """A receiver heartbeat no older than receiver.heartbeat_timeout_s (mission time): the
+    radio is alive now, not just once."""
     ctx.event("waiting_for_radio")
+    fresh_s = ctx.mission.receiver.heartbeat_timeout_s
     try:
-        await wait_until(lambda: ctx.last_heartbeat_t > -math.inf, ctx.opt.radio_wait_s,
-                         "radio heartbeat")
+        await wait_until(lambda: ctx.clock.now() - ctx.last_heartbeat_t <= fresh_s,
+                         ctx.opt.radio_wait_s, "radio heartbeat")
     except VehicleError:
         raise _refuse(ctx, EndReason.NO_RADIO, error=f"no radio heartbeat within "
                       f"{ctx.opt.radio_wait_s:.0f} s on {ctx.mission.receiver.listen}") from None
