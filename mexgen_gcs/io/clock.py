@@ -81,9 +81,10 @@ class VehicleClock:
     Before
     the first sample the clock is the wall clock (at ``fixed_rate`` if given) and ``source``
     says so; once ``min_samples`` spanning ``min_span_s`` wall seconds have arrived it is
-    ``synced``. A sample further than ``jump_s`` vehicle seconds from the fit (the vehicle set
-    its clock, or rebooted) restarts the window. ``now()`` never steps back by less than
-    ``jump_s`` (fit noise), so successive readings are ordered.
+    ``synced``. A sample further from the fit than ``jump_s`` vehicle seconds or two wall
+    seconds' worth (the vehicle set its clock, or rebooted; not a late arrival on a busy
+    machine) restarts the window. ``now()`` never steps back by less than that (fit noise), so
+    successive readings are ordered.
     """
 
     def __init__(
@@ -95,7 +96,7 @@ class VehicleClock:
         anchor_samples: int = 2,
         min_samples: int = 3,
         min_span_s: float = 1.0,
-        jump_s: float = 5.0,
+        jump_s: float = 30.0,
         monotonic: Callable[[], float] = time.monotonic,
         unix: Callable[[], float] = time.time,
     ) -> None:
@@ -159,7 +160,7 @@ class VehicleClock:
             self.samples_rejected += 1
             return False
         if self._samples and (m <= self._samples[-1][0] or
-                              (self._synced and abs(v - self._predict(m)) > self.jump_s)):
+                              (self._synced and abs(v - self._predict(m)) > self._jump())):
             if m <= self._samples[-1][0]:  # out of order arrival stamp: keep the older one
                 self.samples_rejected += 1
                 return False
@@ -192,6 +193,9 @@ class VehicleClock:
         self._offset = float(np.max(at_ref[-self.anchor_samples:])) - rate * m_ref
         self._synced = len(arr) >= self.min_samples and span >= self.min_span_s
 
+    def _jump(self) -> float:
+        return max(self.jump_s, 2.0 * self._rate)
+
     def _predict(self, mono_s: float | np.ndarray) -> float | np.ndarray:
         return self._offset + self._rate * mono_s
 
@@ -199,7 +203,7 @@ class VehicleClock:
 
     def now(self) -> float:
         t = float(self._predict(self._monotonic()))
-        if self._last_now - self.jump_s < t < self._last_now:
+        if self._last_now - self._jump() < t < self._last_now:
             return self._last_now  # fit noise: never step back
         self._last_now = t
         return t

@@ -68,10 +68,19 @@ def on_status_text(ctx: MissionContext) -> Callable[[StatusText], None]:
     return listener
 
 
+CLOCK_LOG_EVERY = 20
+"""Telemetry records between two `clock` records (the vehicle clock's fit)."""
+
+
 async def telemetry_log(ctx: MissionContext) -> None:
     last_print = time.monotonic()
+    describe = getattr(ctx.clock, "describe", None)
+    n = 0
     while True:
         log_rejects(ctx)
+        if describe is not None and n % CLOCK_LOG_EVERY == 0:
+            ctx.log.write("clock", t=ctx.clock.now(), **describe())
+        n += 1
         tel = ctx.vehicle.hub.latest
         ctx.log.write("telemetry", t=ctx.clock.now(), lat=tel.lat_deg, lon=tel.lon_deg,
                       rel_alt_m=tel.rel_alt_m, v_north_m_s=tel.v_north_m_s,

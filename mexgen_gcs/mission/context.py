@@ -111,6 +111,8 @@ class MissionContext:
         self.logged_rejects: dict[str, int] = {}
         self.print_progress = options.print_progress
         self._last_update_mono: float | None = None
+        self.position_mono = -math.inf
+        """When the last position arrived (time.monotonic)."""
         self.telemetry_gap_seen = False
 
     # -- logging -----------------------------------------------------------------------------
@@ -173,6 +175,7 @@ class MissionContext:
             self.telemetry_gap_seen = True
         self._last_update_mono = now
         if "lat_deg" in keys and tel.has_position:
+            self.position_mono = now
             e, n, _ = self.frame.to_enu(tel.lat_deg, tel.lon_deg)
             self.poses.add(Pose(self.clock.now(), float(e), float(n), tel.rel_alt_m,
                                 tel.yaw_deg))

@@ -12,9 +12,11 @@ leave as NED m/s.
 from __future__ import annotations
 
 import asyncio
+import collections
 import concurrent.futures
 import logging
 import math
+import time
 
 import numpy as np
 
@@ -177,20 +179,32 @@ def hold(ctx: MissionContext, reason: str) -> None:
 
 
 async def setpoints(ctx: MissionContext) -> None:
+    """Stream velocity setpoints at 20 Hz wall while in control. The guard's timing follows
+    what the loop really achieves: the latency is the position's age plus the link's, the
+    period the slowest recent setpoint interval, both in vehicle seconds (at a high time
+    scale on a busy machine a few wall milliseconds are metres)."""
     m = ctx.mission
     speed, alt = m.flight.speed_m_s, m.flight.alt_m
     brake = min(m.flight.max_accel_m_s2, PX4_MPC_ACC_HOR_M_S2)
     failures = 0
+    intervals: collections.deque[float] = collections.deque(maxlen=40)
+    last = time.monotonic()
     while ctx.commander.in_control:
+        now = time.monotonic()
+        intervals.append(now - last)
+        last = now
         tel = ctx.vehicle.hub.latest
         _, en, rel_alt = ctx.vehicle_state()
         heading = None if (ctx.hold_reason or ctx.operator_pause) else ctx.heading_deg
         if not all(map(math.isfinite, en)):
             sp = Setpoint(0.0, 0.0, 0.0, tel.yaw_deg, "hold")
         else:
+            rate = ctx.clock.rate
+            age_wall = min(max(now - ctx.position_mono, 0.0), 2.0)
             sp = velocity_setpoint(heading, speed, en, rel_alt, alt, ctx.area, tel.yaw_deg,
                                    (tel.v_east_m_s, tel.v_north_m_s), brake_m_s2=brake,
-                                   latency_s=LATENCY_S, period_s=ctx.clock.rate / SETPOINT_HZ)
+                                   latency_s=LATENCY_S + rate * age_wall,
+                                   period_s=rate * max(max(intervals), 1.0 / SETPOINT_HZ))
             ctx.track.append(en)
         if ctx.state in (MissionState.SEARCHING, MissionState.HOLDING):
             ctx.state = MissionState.HOLDING if sp.reason == "hold" else MissionState.SEARCHING
