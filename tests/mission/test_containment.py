@@ -17,7 +17,8 @@ import pytest
 
 from mexgen_gcs.mission import views
 from mexgen_gcs.mission.planning import MissionPlanner
-from tests.mission.fake_vehicle import FakeVehicle, Scripted, fly, make_mission
+from tests.mission.fake_flight import fly, make_mission
+from tests.mission.fake_vehicle import FakeVehicle, Scripted
 
 
 def _vehicle(*script: Scripted, **kw) -> FakeVehicle:

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import pytest
 
-from tests.mission.fake_vehicle import FakeVehicle, Scripted, fly, make_mission
+from tests.mission.fake_flight import fly, make_mission
+from tests.mission.fake_vehicle import FakeVehicle, Scripted
 
 
 def _vehicle(*script: Scripted, **kw) -> FakeVehicle:
