@@ -272,3 +272,19 @@ async def test_a_refused_setpoint_stream_is_not_fatal(tmp_path):
     f = await fly(tmp_path / "log", fake, requests=(("offboard", 12.0, "rtl"),))
     assert f.result.end_reason == "operator_rtl"
     assert "setpoint_failed" in f.kinds() and "landed_and_disarmed" in f.kinds()
+
+
+async def test_an_abort_during_the_preflight_wait_ends_on_the_ground_at_once(tmp_path):
+    """The operator aborts while the GCS waits for a radio that never comes: the wait ends
+    at once, nothing is armed."""
+    from mexgen_gcs.mission.controller import ControllerOptions
+
+    fake = _vehicle()
+    opts = ControllerOptions(connect_timeout_s=5, ready_timeout_s=5, radio_wait_s=30,
+                             clock_wait_s=5, print_progress=False)
+    t0 = time.monotonic()
+    f = await fly(tmp_path / "log", fake, options=opts, receiver_kw={"silent": True},
+                  requests=(("start", 40.0, "abort"),))
+    assert time.monotonic() - t0 < 15.0
+    assert f.result.end_reason == "operator_abort" and f.result.exit_code == 1
+    assert "arm" not in _names(fake) and f.result_record["end_reason"] == "operator_abort"

@@ -19,6 +19,7 @@ import numpy as np
 from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.vehicle import wait_until
 from mexgen_gcs.mission.context import MissionContext
+from mexgen_gcs.mission.phases.common import supervised
 from mexgen_gcs.mission.state import EndReason, MissionEnd, MissionState, ReturnAction
 
 
@@ -36,6 +37,11 @@ def warn_operator(ctx: MissionContext, kind: str, text: str, **fields: object) -
 
 
 async def run(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
+    """The checks, interruptible: a stop request or a fault anywhere ends them at once."""
+    await supervised(ctx, _checks(ctx, start_telemetry))
+
+
+async def _checks(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
     ctx.phase = "preflight"
     ctx.state = MissionState.CONNECTING
     ctx.event("connecting", url=ctx.connect_url)

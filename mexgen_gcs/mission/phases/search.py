@@ -270,6 +270,7 @@ async def resume_after_link(ctx: MissionContext) -> None:
     ctx.telemetry_gap_seen = False
     ctx.hold_reason = None
     if tel.flight_mode == "OFFBOARD":
+        ctx.commander.expect({"OFFBOARD"})  # still ours: watch it again
         return
     if not tel.in_air:
         ctx.finish(EndReason.LANDED_DURING_LINK_LOSS)
