@@ -67,15 +67,17 @@ class Simulation:
     def __init__(self, mission: Mission, options: SimOptions) -> None:
         self.mission = mission
         self.options = options
-        self.clock = SimClock(options.speedup)
+        self.clock = SimClock(options.speedup, rate_error=options.clock_rate_error,
+                              system_time=options.system_time)
         self.frame = mission.local_frame()
         self.seed = seed_of(mission, options)
-        seeds = np.random.SeedSequence(self.seed).spawn(2)
-        world_rng, radio_rng = (np.random.default_rng(s) for s in seeds)
+        seeds = np.random.SeedSequence(self.seed).spawn(3)
+        world_rng, radio_rng, vehicle_rng = (np.random.default_rng(s) for s in seeds)
         self.truth = TruthWriter(options.truth_dir)
         self.faults = FaultSchedule(faults_of(mission, options))
         self.autopilot = Autopilot(ParamTable(initial_params(mission)), airframe_limits(mission),
-                                   mission.sim.battery_endurance_s)
+                                   mission.sim.battery_endurance_s, self.frame.alt0_m,
+                                   vehicle_rng)
         self._mav_transport: asyncio.DatagramTransport | None = None
         targets = [options.mavlink] + ([options.gcs] if options.gcs else [])
         self.takeover: TakeoverLog | None = None
@@ -155,7 +157,8 @@ class Simulation:
         wall = self.clock.wall_s()
         while self.clock.sim_s < due - 1e-9:
             now = self.clock.sim_s
-            t_next = min(due, self.radio.next_event_s(), self.faults.next_start_s(now),
+            radio_next = self.radio.next_event_s() if self.options.radios else math.inf
+            t_next = min(due, radio_next, self.faults.next_start_s(now),
                          self._next_vehicle_truth_s, now + MAX_PHYSICS_DT_S)
             t_next = max(t_next, now + 1e-6)
             self.autopilot.step(t_next - now, t_next, wall)
@@ -173,8 +176,9 @@ class Simulation:
         if now + 1e-9 >= self._next_vehicle_truth_s:
             self._vehicle_truth()
             self._next_vehicle_truth_s = math.floor(now + 1e-9) + TRUTH_VEHICLE_PERIOD_S
-        for datagram in self.radio.advance(now, wall, self._pose()):
-            self._radio_send(datagram)
+        if self.options.radios:
+            for datagram in self.radio.advance(now, wall, self._pose()):
+                self._radio_send(datagram)
 
     def _pose(self) -> ReceiverPose:
         s = self.autopilot.state
@@ -232,6 +236,7 @@ class Simulation:
         m, o = self.mission, self.options
         self.truth.write(
             self.clock.unix(), "sim", mission=m.name, seed=self.seed, speedup=o.speedup,
+            clock_rate=self.clock.rate, system_time=o.system_time,
             start_unix=self.clock.start_unix, wall_start_unix=time.time(), sysid=o.sysid,
             home={"lat_deg": m.home.lat_deg, "lon_deg": m.home.lon_deg, "alt_m": m.home.alt_m},
             mavlink=list(o.mavlink), radio=list(o.radio), listen=[listen[0], listen[1]],

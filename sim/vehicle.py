@@ -137,7 +137,8 @@ class MavlinkVehicle:
         self.stats["tx_messages"] += 1
 
     def statustext(self, text: str, severity: int = mavlink.MAV_SEVERITY_INFO) -> None:
-        self.send(self.telemetry.statustext(text, severity))
+        for msg in self.telemetry.statustext(text, severity):
+            self.send(msg)
 
     # -- telemetry scheduling ---------------------------------------------------------------
 

@@ -21,6 +21,7 @@ from pymavlink import mavutil
 
 from mexgen_gcs.config import load_mission
 from mexgen_gcs.errors import ConfigError
+from mexgen_gcs.io.truthfile import read_truth_file
 from sim import px4_modes as modes
 from sim.faults import Fault, FaultSchedule, parse_fault_flag
 from sim.takeover import command_name
@@ -141,6 +142,7 @@ def test_takeover_counts_what_the_gcs_sent_after_it(sim_factory: SimFactory,
     wait_for(client, "HEARTBEAT", lambda m: _px4_mode(m) == "LAND", 8.0 / speedup + 5.0)
     assert sim.wait_exit(30.0) == 0  # landed and disarmed: the simulator ends by itself
 
+    assert not read_truth_file(sim.truth_path).damage  # every record as documented
     records = read_truth(sim.truth_path)
     faults = [r for r in records if r["type"] == "fault"]
     assert [(f["phase"], f["mode_before"], f["mode_after"]) for f in faults] == [
