@@ -285,7 +285,8 @@ class MavsdkVehicle:
     async def _pump_status_text(self, tel: Any) -> None:
         async for st in tel.subscribe_status_text():
             severity = getattr(getattr(st, "type", None), "name", "info").lower()
-            self.hub.status_text(severity, str(getattr(st, "text", "")))
+            # PX4 pads some texts with a tab: the log keeps the words
+            self.hub.status_text(severity, str(getattr(st, "text", "")).rstrip())
 
     async def _pump_time(self, tel: Any) -> None:
         """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds, stamped on
