@@ -35,7 +35,8 @@ from scipy.special import log_ndtr
 from mexgen_gcs.core.radio import RadioModel
 
 Float32Array = NDArray[np.float32]
-Int32Array = NDArray[np.int32]
+IndexArray = NDArray[np.intp]
+"""Table indices: numpy's take converts any other integer type to intp first (a copy)."""
 BoolArray = NDArray[np.bool_]
 
 _TABLE_HALF_WIDTH = 40.0
@@ -91,10 +92,10 @@ class DetectionTable:
 
     def index(
         self, power_db: NDArray[np.floating],
-        scratch: tuple[Float32Array, Int32Array] | None = None,
+        scratch: tuple[Float32Array, IndexArray] | None = None,
         bounded: bool = False,
-    ) -> NDArray[np.int32]:
-        """The table entries of powers (dB), for the ``take_*`` lookups: (...) int32 (written
+    ) -> IndexArray:
+        """The table entries of powers (dB), for the ``take_*`` lookups: (...) intp (written
         into ``scratch[1]`` if given, with ``scratch[0]`` a float32 temporary).
 
         ``bounded``: the caller guarantees finite powers within +-10^4 dB of the sensitivity
@@ -107,31 +108,31 @@ class DetectionTable:
         f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
         f += np.float32(self._offset)
         if scratch is None:
-            return f.astype(np.int32)  # truncation towards 0; take(mode="clip") clamps
+            return f.astype(np.intp)  # truncation towards 0; take(mode="clip") clamps
         np.copyto(scratch[1], f, casting="unsafe")
         return scratch[1]
 
-    def take_log_pd(self, index: NDArray[np.int32], out: Float32Array | None = None
+    def take_log_pd(self, index: IndexArray, out: Float32Array | None = None
                     ) -> Float32Array:
         """log pD (>= LOG_FLOOR) at table entries :meth:`index`."""
         return self._log_pd.take(index, out=out, mode="clip")
 
-    def take_log_miss(self, index: NDArray[np.int32], out: Float32Array | None = None
+    def take_log_miss(self, index: IndexArray, out: Float32Array | None = None
                       ) -> Float32Array:
         """log(1 - pD) (>= LOG_FLOOR) at table entries :meth:`index`."""
         return self._log_miss.take(index, out=out, mode="clip")
 
-    def take_log_miss_gap(self, index: NDArray[np.int32], out: Float32Array | None = None
+    def take_log_miss_gap(self, index: IndexArray, out: Float32Array | None = None
                           ) -> Float32Array:
         """log(1 - pD) - log pD (both >= LOG_FLOOR) at table entries :meth:`index`."""
         return self._log_gap.take(index, out=out, mode="clip")
 
-    def take_miss(self, index: NDArray[np.int32], out: Float32Array | None = None
+    def take_miss(self, index: IndexArray, out: Float32Array | None = None
                   ) -> Float32Array:
         """1 - pD at table entries :meth:`index`; exactly 0 where pD = 1 (pd_max = 1)."""
         return self._miss.take(index, out=out, mode="clip")
 
-    def take_miss_pow(self, index: NDArray[np.int32], alpha: float,
+    def take_miss_pow(self, index: IndexArray, alpha: float,
                       out: Float32Array | None = None) -> Float32Array:
         """(1 - pD)^alpha at table entries :meth:`index` (the table for each alpha is built
         once, ~1 ms)."""
@@ -143,14 +144,14 @@ class DetectionTable:
         return table.take(index, out=out, mode="clip")
 
     def _index(
-        self, power_db: NDArray[np.floating], scratch: tuple[Float32Array, Int32Array] | None
-    ) -> NDArray[np.int32]:
+        self, power_db: NDArray[np.floating], scratch: tuple[Float32Array, IndexArray] | None
+    ) -> IndexArray:
         f = None if scratch is None else scratch[0]
         f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
         f += np.float32(self._offset)
         np.clip(f, np.float32(0.0), np.float32(self._log_pd.size - 1), out=f)
         if scratch is None:
-            return f.astype(np.int32)
+            return f.astype(np.intp)
         i = scratch[1]
         np.copyto(i, f, casting="unsafe")  # truncation = floor for f >= 0
         return i
@@ -159,17 +160,17 @@ class DetectionTable:
         self,
         power_db: NDArray[np.floating],
         out: Float32Array | None = None,
-        scratch: tuple[Float32Array, Int32Array] | None = None,
+        scratch: tuple[Float32Array, IndexArray] | None = None,
     ) -> Float32Array:
         """log pD(P) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given.
-        ``scratch``: float32 and int32 buffers shaped like the input (nothing is allocated)."""
+        ``scratch``: float32 and intp buffers shaped like the input (nothing is allocated)."""
         return self._log_pd.take(self._index(power_db, scratch), out=out, mode="clip")
 
     def log_miss(
         self,
         power_db: NDArray[np.floating],
         out: Float32Array | None = None,
-        scratch: tuple[Float32Array, Int32Array] | None = None,
+        scratch: tuple[Float32Array, IndexArray] | None = None,
     ) -> Float32Array:
         """log(1 - pD(P)) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given."""
         return self._log_miss.take(self._index(power_db, scratch), out=out, mode="clip")

@@ -169,7 +169,7 @@ def rollout_gains(
     # MC rollouts share each action's grid: their likelihoods are one matrix product each
     coef = ws.get("coef", (grid_shape[0], n_tags, n_act, 2, n_pad)) if n_roll > 1 else None
     grid_scratch = [ws.get(f"grid{j}", grid_shape) for j in range(3)]
-    lut_scratch = (ws.get("lut_f", grid_shape), ws.get("lut_i", grid_shape, np.int32))
+    lut_scratch = (ws.get("lut_f", grid_shape), ws.get("lut_i", grid_shape, np.intp))
     timing["predict"] += t1 - t0
 
     shape = (n_tags, n_act, n_roll, n_pad)

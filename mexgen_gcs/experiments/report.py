@@ -110,12 +110,13 @@ def _localise_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[Pat
     ax_t.set_ylabel("time to localise all objects (s)")
     ax_t.set_title("Multi-object localisation: completion time (successful runs)")
     for ax, (prefix, _) in zip(axes_s, readings, strict=True):
-        radius = {r.get("tight_radius_m" if prefix else "radius_m", "") for r in rows} - {""}
+        radius = {float(r[c]) for r in rows
+                  if r.get(c := "tight_radius_m" if prefix else "radius_m", "")}
         ax.set_ylabel("success rate")
         ax.set_ylim(0.0, 1.05)
         ax.set_title(f"All objects localised within the limit, radius "
-                     f"{', '.join(sorted(radius)) or '50'} m (95 % Wilson intervals)",
-                     fontsize=9)
+                     f"{', '.join(f'{v:g}' for v in sorted(radius)) or '50'} m (95 % Wilson "
+                     "intervals)", fontsize=9)
     return [_save(fig_t, out / "localise-time.png"), _save(fig_s, out / "localise-success.png"),
             _survival_plot(out, rows, ident, models, methods, readings)]
 
