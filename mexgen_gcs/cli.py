@@ -177,11 +177,11 @@ def _methods(text: str) -> tuple[str, ...]:
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Validate a mission; print what it would fly and any warnings."""
-    from mexgen_gcs.config import describe, load_mission
+    from mexgen_gcs.config import describe, load_mission, mission_warnings
 
     mission = load_mission(args.mission)
     print(describe(mission))
-    warnings = mission.warnings()
+    warnings = mission_warnings(mission)
     if warnings:
         print(f"Warnings ({len(warnings)}):")
         for text in warnings:

@@ -1,5 +1,8 @@
 """``python -m sim MISSION.yaml [options]``: run the simulator until stopped or landed.
 
+``--radios-only --vehicle URL``: no simulated vehicle; the radios ride on a real autopilot's
+(or another simulator's) MAVLink telemetry (``sim.rider``). ``--no-radios``: the vehicle only.
+
 Exit codes: 0 after a clean stop (SIGINT/SIGTERM, or landed and disarmed after flying),
 2 for bad input (mission file or flags), with a message on stderr naming the problem.
 Prints one line ``sim ready mavlink=... radio=... listen=...`` on stdout once it is up.
@@ -13,11 +16,14 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from mexgen_gcs.config import load_mission
+from mexgen_gcs.config import Mission, load_mission
 from mexgen_gcs.errors import ConfigError
+from sim.clock import SYSTEM_TIME_SOURCES
 from sim.faults import KINDS, parse_fault_flag
+from sim.rider import RadioRider, RiderOptions
 from sim.runner import Simulation
-from sim.scenario import Address, SimOptions
+from sim.scenario import Address, SimOptions, faults_of
+from sim.vehicle_link import VehicleEndpoint, parse_vehicle_url
 
 
 def parse_address(text: str) -> Address:
@@ -46,6 +52,23 @@ def _positive(text: str) -> float:
     return value
 
 
+def _rate_error(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not -0.5 <= value <= 0.5:
+        raise argparse.ArgumentTypeError(f"expected -0.5 <= E <= 0.5, got {value}")
+    return value
+
+
+def _vehicle(text: str) -> VehicleEndpoint:
+    try:
+        return parse_vehicle_url(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _sysid(text: str) -> int:
     if not text.isdigit() or not 1 <= int(text) <= 255:
         raise argparse.ArgumentTypeError(f"expected a system id 1..255, got {text!r}")
@@ -62,6 +85,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speedup", type=_positive, default=1.0,
                    help="sim time runs K times faster than the wall clock, 0 < K <= 200 "
                         "(default 1; up to 50 is reliable with MAVSDK, see sim/README.md)")
+    p.add_argument("--clock-rate-error", type=_rate_error, default=0.0, metavar="E",
+                   help="sim time runs at K*(1+E) instead of K, -0.5 <= E <= 0.5 (default 0; "
+                        "PX4 SIH at speed factor 4 runs about -0.02)")
+    p.add_argument("--system-time", choices=SYSTEM_TIME_SOURCES, default="sim",
+                   help="SYSTEM_TIME.time_unix_usec: sim = sim time as unix (a real "
+                        "aircraft's GPS clock), host = the host's wall clock while time_boot_ms "
+                        "is sim time (PX4 SITL); default sim")
     p.add_argument("--mavlink", type=parse_address, default=("127.0.0.1", 14540),
                    metavar="HOST:PORT", help="send MAVLink here (default 127.0.0.1:14540)")
     p.add_argument("--gcs", type=parse_address, default=None, metavar="HOST:PORT",
@@ -79,20 +109,55 @@ def build_parser() -> argparse.ArgumentParser:
                         + ", ".join(f"{k}({', '.join(v)})" for k, v in KINDS.items()))
     p.add_argument("--keep-running", action="store_true",
                    help="do not exit after landing and disarming")
+    p.add_argument("--no-radios", action="store_true",
+                   help="simulate the vehicle only, no tags and no datagrams (e.g. when "
+                        "radios ride on it from another process with --radios-only)")
+    g = p.add_argument_group("radios riding on any MAVLink vehicle")
+    g.add_argument("--radios-only", action="store_true",
+                   help="no simulated vehicle: run tags, pulses and detections on the clock and "
+                        "pose of the vehicle at --vehicle (vehicle flags and faults are ignored)")
+    g.add_argument("--vehicle", type=_vehicle, default=None, metavar="URL",
+                   help="the vehicle's telemetry: udpin:HOST:PORT (listen, e.g. PX4's GCS link "
+                        "udpin:0.0.0.0:14550) or udpout:HOST:PORT (talk first, e.g. PX4 "
+                        "instance i's GCS link udpout:127.0.0.1:18570+i)")
+    g.add_argument("--vehicle-sysid", type=_sysid, default=None,
+                   help="the vehicle's MAVLink system id (default: the first autopilot heard)")
     return p
 
 
+def _radios_only(mission: Mission, args: argparse.Namespace) -> int:
+    options = RiderOptions(
+        vehicle=args.vehicle, radio=args.radio, vehicle_sysid=args.vehicle_sysid,
+        seed=args.seed, truth_dir=args.truth_dir, keep_running=args.keep_running)
+    try:
+        rider = RadioRider(mission, options, faults_of(mission, SimOptions(
+            extra_faults=tuple(args.fault))))
+        return asyncio.run(rider.run())
+    except (OSError, ValueError) as exc:
+        print(f"sim: cannot start: {exc}", file=sys.stderr)
+        return 2
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.radios_only != (args.vehicle is not None):
+        parser.error("--radios-only and --vehicle URL go together")
+    if args.radios_only and args.no_radios:
+        parser.error("--radios-only and --no-radios exclude each other")
     try:
         mission = load_mission(args.mission)
     except ConfigError as exc:
         print(f"sim: {exc}", file=sys.stderr)
         return 2
+    if args.radios_only:
+        return _radios_only(mission, args)
     options = SimOptions(
-        speedup=args.speedup, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
+        speedup=args.speedup, clock_rate_error=args.clock_rate_error,
+        system_time=args.system_time, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
         radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
-        extra_faults=tuple(args.fault), keep_running=args.keep_running)
+        extra_faults=tuple(args.fault), keep_running=args.keep_running,
+        radios=not args.no_radios)
     try:
         sim = Simulation(mission, options)
     except (OSError, ValueError) as exc:

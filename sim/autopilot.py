@@ -9,12 +9,14 @@ that the caller turns into heartbeats, STATUSTEXT and truth records. Timeouts th
 the ground station's reactions (offboard setpoint loss, pre-flight auto-disarm) use the wall
 time the caller passes in; physics, battery and landing use sim time.
 
-Behaviours mirrored from PX4 (see ARCHITECTURE.md "Real PX4 behaviours"): arming refused
+Behaviours mirrored from PX4 (sim/README.md says what was observed on PX4 SITL): arming refused
 without a GPS fix; auto-disarm when not taken off within COM_DISARM_PRFLT of arming and
 COM_DISARM_LAND after landing; takeoff to MIS_TAKEOFF_ALT then hold; offboard only with a
-fresh setpoint and hold after COM_OF_LOSS_T without one; RTL climbs to RTL_RETURN_ALT (or
+fresh setpoint and, after COM_OF_LOSS_T without one, COM_OBL_RC_ACT (position mode, which
+without RC falls back to NAV_RCL_ACT: return, as PX4 SITL does); RTL climbs to RTL_RETURN_ALT (or
 stays higher), returns at MPC_XY_CRUISE, lands; speed capped by MPC_XY_VEL_MAX; battery
-critical -> RTL and emergency -> land; geofence breach -> GF_ACTION.
+critical -> RTL and emergency -> land; geofence breach -> GF_ACTION. STATUSTEXT wordings
+are PX4's (``sim.px4_texts``); mode changes are silent, as on PX4.
 """
 
 from __future__ import annotations
@@ -23,7 +25,10 @@ import math
 from dataclasses import dataclass, replace
 from enum import IntEnum
 
+import numpy as np
+
 from sim import px4_modes as modes
+from sim import px4_texts as texts
 from sim.fence import Fence
 from sim.guidance import ReturnToLaunch, descend, stopping_point
 from sim.kinematics import KinematicState, Limits, VelocityCommand, step, velocity_towards
@@ -52,11 +57,15 @@ class LandedState(IntEnum):
 
 @dataclass(frozen=True, slots=True)
 class Event:
-    """Something the operator should hear about. ``severity`` is MAV_SEVERITY (6 info)."""
+    """Something that happened to the vehicle. ``severity`` is MAV_SEVERITY (6 info).
+
+    ``announce``: PX4 sends this text as STATUSTEXT; otherwise it is only logged (truth).
+    """
 
     kind: str
     text: str
     severity: int = 6
+    announce: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,27 +81,42 @@ class Setpoint:
 _MANUAL_MODES = {MainMode.MANUAL, MainMode.ACRO, MainMode.STABILIZED, MainMode.RATTITUDE}
 _HOLD_LIKE = {modes.HOLD, modes.POSCTL, modes.ALTCTL}
 _GROUND_M = 0.05
+#: PX4 re-sets home at arming and at takeoff to its position estimate; in SIH that lands
+#: within ~0.3 m of the true position (observed). Standard deviations of the simulated error.
+HOME_ERROR_STD_M = (0.1, 0.1, 0.15)
+HOME_ERROR_MAX_M = 0.3
 
 
 class Autopilot:
     """The vehicle's state and PX4-like behaviour. Call ``step`` with small sim dt."""
 
-    def __init__(self, params: ParamTable, airframe: Limits, battery_endurance_s: float
-                 ) -> None:
+    def __init__(self, params: ParamTable, airframe: Limits, battery_endurance_s: float,
+                 alt0_amsl_m: float = 0.0, rng: np.random.Generator | None = None) -> None:
+        """``rng``: draws the error of the home re-set at arming/takeoff (None: exact)."""
         if not battery_endurance_s > 0.0:
             raise ValueError("battery_endurance_s must be > 0")
         self.params = params
         self.airframe = airframe
         self.battery_endurance_s = battery_endurance_s
+        self.alt0_amsl_m = alt0_amsl_m
+        """AMSL altitude of the local frame's origin (for PX4's RTL message)."""
         self.state = KinematicState()
         self.armed = False
         self.mode: PX4Mode = modes.HOLD
         self.landed_state = LandedState.ON_GROUND
         self.home_enu_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self.home_set_sim_s = 0.0
+        self._rng = rng
+        self._now_sim_s = 0.0
+        """Sim time home was last set (HOME_POSITION.time_usec, time since boot as PX4)."""
         self.gps_ok = True
         self.battery_fraction = 1.0
         self.fence = Fence()
         self.has_flown = False
+        self.failsafe = False
+        """A failsafe chose the current mode (HEARTBEAT system_status CRITICAL, as PX4)."""
+        self.rc_available = False
+        """A pilot's RC transmitter is connected (from a pilot takeover on)."""
         self.events: list[Event] = []
         self._setpoint: Setpoint | None = None
         self._setpoint_wall_s = -math.inf
@@ -130,8 +154,8 @@ class Autopilot:
             max_yaw_rate_deg_s=self.airframe.max_yaw_rate_deg_s,
         )
 
-    def _emit(self, kind: str, text: str, severity: int = 6) -> None:
-        self.events.append(Event(kind, text, severity))
+    def _emit(self, kind: str, text: str, severity: int = 6, announce: bool = True) -> None:
+        self.events.append(Event(kind, text, severity, announce))
 
     def _set_mode(self, mode: PX4Mode) -> None:
         if mode in _HOLD_LIKE:
@@ -139,7 +163,7 @@ class Autopilot:
             self._hold_speed_m_s = None
         if mode != self.mode:
             self.mode = mode
-            self._emit("mode", f"mode {modes.name(mode)}")
+            self._emit("mode", f"mode {modes.name(mode)}", announce=False)
 
     # -- commands --------------------------------------------------------------------------
 
@@ -148,27 +172,32 @@ class Autopilot:
             return Result.ACCEPTED
         if not force:
             if not self.gps_ok:
-                self._emit("arm_denied", "Arming denied: no GPS fix", 4)
+                self._emit("preflight", texts.PREFLIGHT_GPS, texts.CRITICAL)
+                self._emit("arm_denied", texts.ARM_DENIED_HEALTH, texts.CRITICAL)
                 return Result.DENIED
             if self.battery_fraction <= self.params["BAT_CRIT_THR"]:
-                self._emit("arm_denied", "Arming denied: battery critical", 4)
+                self._emit("arm_denied", texts.ARM_DENIED_HEALTH, texts.CRITICAL)
                 return Result.DENIED
         self.armed = True
+        self.failsafe = False
         self._armed_wall_s = now_wall_s
         self._left_ground_since_arming = self.in_air
         self._on_ground_since_sim_s = None
-        self._emit("armed", "Armed")
+        self._emit("armed", texts.ARMED)
+        if not self.in_air:
+            self._auto_home()
         if self.mode == modes.TAKEOFF and not self.in_air:
-            self._begin_takeoff(self.params["MIS_TAKEOFF_ALT"])
+            self._begin_takeoff(self.params["MIS_TAKEOFF_ALT"], default_alt=True)
         return Result.ACCEPTED
 
-    def disarm(self, force: bool = False, reason: str = "Disarmed") -> Result:
+    def disarm(self, force: bool = False, reason: str = texts.DISARMED_BY_COMMAND) -> Result:
         if not self.armed:
             return Result.ACCEPTED
         if self.in_air and not force:
-            self._emit("disarm_denied", "Disarming denied: not landed", 4)
+            self._emit("disarm_denied", texts.DISARM_DENIED_IN_AIR, texts.CRITICAL)
             return Result.DENIED
         self.armed = False
+        self.failsafe = False
         if self.in_air:  # forced disarm in flight: the airframe drops to the ground
             self.state = replace(self.state, up_m=0.0, v_east_m_s=0.0, v_north_m_s=0.0,
                                  v_up_m_s=0.0)
@@ -177,26 +206,48 @@ class Autopilot:
         self._emit("disarmed", reason)
         return Result.ACCEPTED
 
-    def takeoff(self, alt_rel_m: float | None) -> Result:
-        alt = self.params["MIS_TAKEOFF_ALT"] if alt_rel_m is None else alt_rel_m
+    def takeoff(self, target_up_m: float | None) -> Result:
+        """Climb to ``target_up_m`` (ENU up = height above the ground), or MIS_TAKEOFF_ALT."""
+        alt = self.params["MIS_TAKEOFF_ALT"] if target_up_m is None else target_up_m
         if not (math.isfinite(alt) and 0.0 < alt <= 500.0):
             return Result.DENIED
         if not self.armed or self.in_air:
             return Result.DENIED
-        self._set_mode(modes.TAKEOFF)
-        self._begin_takeoff(alt)
+        self._command_mode(modes.TAKEOFF)
+        self._begin_takeoff(alt, default_alt=target_up_m is None)
         return Result.ACCEPTED
 
-    def _begin_takeoff(self, alt_rel_m: float) -> None:
+    def _begin_takeoff(self, alt_rel_m: float, default_alt: bool) -> None:
         s = self.state
         self._takeoff_up_m = alt_rel_m
         self._hold_target = (s.east_m, s.north_m, alt_rel_m)
-        self._emit("takeoff", f"Takeoff to {alt_rel_m:.1f} m")
+        if default_alt:
+            self._emit("takeoff", texts.takeoff_default(alt_rel_m))
+
+    def _command_mode(self, mode: PX4Mode) -> None:
+        """A mode the ground station (or the pilot) chose: any failsafe is over."""
+        self.failsafe = False
+        self._set_mode(mode)
+
+    def _failsafe(self, mode: PX4Mode, kind: str, *reason: str) -> None:
+        for text in reason:
+            self._emit(kind, text, texts.CRITICAL)
+        self._emit("failsafe", texts.FAILSAFE, texts.CRITICAL)
+        self.failsafe = True
+        if mode == modes.RTL:
+            self._start_rtl()
+        elif mode == modes.LAND:
+            self._set_mode(modes.LAND)
+            s = self.state
+            self._hold_target = (s.east_m, s.north_m, 0.0)
+        else:
+            self._set_mode(mode)
 
     def land(self) -> Result:
         if not self.armed:
             return Result.DENIED
-        self._set_mode(modes.LAND)
+        self._emit("land", texts.LANDING_HERE)
+        self._command_mode(modes.LAND)
         s = self.state
         self._hold_target = (s.east_m, s.north_m, 0.0)
         return Result.ACCEPTED
@@ -204,54 +255,83 @@ class Autopilot:
     def return_to_launch(self) -> Result:
         if not self.armed:
             return Result.DENIED
-        self._set_mode(modes.RTL)
-        self._rtl = ReturnToLaunch(self.home_enu_m[0], self.home_enu_m[1],
-                                   max(self.state.up_m, self.params["RTL_RETURN_ALT"]))
-        if not self.in_air:
-            self._rtl.phase = "land"
+        self._emit("rtl", texts.RETURNING)
+        self.failsafe = False
+        self._start_rtl()
         return Result.ACCEPTED
 
+    def _start_rtl(self) -> None:
+        self._set_mode(modes.RTL)
+        home_up = self.home_enu_m[2]
+        alt = max(self.state.up_m, home_up + self.params["RTL_RETURN_ALT"])
+        self._rtl = ReturnToLaunch(self.home_enu_m[0], self.home_enu_m[1], alt)
+        if not self.in_air:
+            self._rtl.phase = "land"
+        else:
+            self._emit("rtl", texts.rtl_start(self.alt0_amsl_m + alt, alt - home_up))
+
     def hold(self) -> Result:
-        self._set_mode(modes.HOLD)
+        self._command_mode(modes.HOLD)
         return Result.ACCEPTED
 
     def set_mode(self, mode: PX4Mode, now_wall_s: float) -> Result:
         """DO_SET_MODE: the modes this vehicle can enter, with PX4's preconditions."""
         if mode == self.mode:
+            self.failsafe = False
             return Result.ACCEPTED
         if mode in _HOLD_LIKE:
-            self._set_mode(mode)
+            self._command_mode(mode)
             return Result.ACCEPTED
         if mode == modes.OFFBOARD:
             if not self.offboard_setpoint_fresh(now_wall_s):
-                self._emit("mode_denied", "Offboard denied: no setpoints", 4)
                 return Result.TEMPORARILY_REJECTED
-            self._set_mode(mode)
+            self._command_mode(mode)
             return Result.ACCEPTED
         if mode == modes.TAKEOFF:
             if self.in_air:
                 return Result.DENIED
-            self._set_mode(mode)
+            self._command_mode(mode)
             if self.armed:
-                self._begin_takeoff(self.params["MIS_TAKEOFF_ALT"])
+                self._begin_takeoff(self.params["MIS_TAKEOFF_ALT"], default_alt=True)
             return Result.ACCEPTED
         if mode == modes.LAND:
-            self._set_mode(mode)
+            self._command_mode(mode)
             s = self.state
             self._hold_target = (s.east_m, s.north_m, 0.0)
             return Result.ACCEPTED
         if mode == modes.RTL:
-            return self.return_to_launch() if self.armed else Result.DENIED
+            if not self.armed:
+                return Result.DENIED
+            self.failsafe = False
+            self._start_rtl()
+            return Result.ACCEPTED
         if mode[0] in _MANUAL_MODES:
-            self._emit("mode_denied", f"{modes.name(mode)} denied: no manual control input", 4)
+            self._emit("mode_denied", f"Switching to {modes.name(mode)} is currently not "
+                       "available	", texts.CRITICAL)
         return Result.DENIED  # MISSION (none uploaded), manual modes, READY, FOLLOW, ...
+
+    def pilot_switch(self, mode: PX4Mode) -> None:
+        """The pilot moves the RC mode switch: PX4 changes mode at once and says nothing
+        (commander's ACTION_SWITCH_MODE sends no STATUSTEXT on success; HEARTBEAT shows it).
+        POSCTL/ALTCTL with centred sticks brake and hold; LAND lands and auto-disarms."""
+        self.failsafe = False
+        self.rc_available = True
+        if mode == modes.LAND:
+            s = self.state
+            self._hold_target = (s.east_m, s.north_m, 0.0)
+        if mode in _HOLD_LIKE:
+            self._hold_target = stopping_point(self.state, self.limits(), self.in_air)
+            self._hold_speed_m_s = None
+        if mode != self.mode:
+            self.mode = mode
+            self._emit("pilot", f"RC mode switch: {modes.name(mode)}", announce=False)
 
     def reposition(self, target_enu_m: tuple[float, float, float], speed_m_s: float | None
                    ) -> Result:
         """DO_REPOSITION: fly to a point in hold mode (PX4 'goto')."""
         if not (self.armed and self.in_air):
             return Result.DENIED
-        self._set_mode(modes.HOLD)
+        self._command_mode(modes.HOLD)
         self._hold_target = target_enu_m
         self._hold_speed_m_s = speed_m_s
         return Result.ACCEPTED
@@ -264,8 +344,19 @@ class Autopilot:
 
     def set_home(self, home_enu_m: tuple[float, float, float]) -> Result:
         self.home_enu_m = home_enu_m
-        self._emit("home", "Home position set")
+        self.home_set_sim_s = self._now_sim_s
+        self._emit("home", "Home position set", announce=False)  # PX4 says nothing
         return Result.ACCEPTED
+
+    def _auto_home(self) -> None:
+        """PX4 (COM_HOME_EN) sets home to its position estimate at arming and at takeoff."""
+        s = self.state
+        e, n, u = s.east_m, s.north_m, 0.0 if not self.in_air else s.up_m
+        if self._rng is not None:
+            de, dn, du = np.clip(self._rng.normal(0.0, HOME_ERROR_STD_M), -HOME_ERROR_MAX_M,
+                                 HOME_ERROR_MAX_M)
+            e, n, u = e + float(de), n + float(dn), u + float(du)
+        self.set_home((e, n, u))
 
     def offboard_setpoint(self, setpoint: Setpoint, now_wall_s: float) -> None:
         self._setpoint = setpoint
@@ -279,6 +370,7 @@ class Autopilot:
 
     def step(self, dt_s: float, now_sim_s: float, now_wall_s: float) -> None:
         """Advance the vehicle by dt_s of sim time (keep dt_s <= ~0.05 s)."""
+        self._now_sim_s = now_sim_s
         self._supervise(now_wall_s)
         limits = self.limits()
         cmd = self._command(limits) if self.armed else VelocityCommand()
@@ -293,12 +385,21 @@ class Autopilot:
 
     def _supervise(self, now_wall_s: float) -> None:
         if self.mode == modes.OFFBOARD and not self.offboard_setpoint_fresh(now_wall_s):
-            self._emit("failsafe", "Failsafe: offboard setpoints lost, holding", 4)
-            self._set_mode(modes.HOLD)
+            self._failsafe(self._offboard_loss_mode(), "offboard_lost")
         prflt = self.params["COM_DISARM_PRFLT"]
         if (self.armed and not self._left_ground_since_arming and prflt > 0.0
                 and now_wall_s - self._armed_wall_s > prflt):
-            self.disarm(reason="Disarmed: no takeoff after arming")
+            self.disarm(reason=texts.DISARMED_PREFLIGHT)
+
+    def _offboard_loss_mode(self) -> PX4Mode:
+        """PX4's failsafe for offboard loss (commander/failsafe/failsafe.cpp): COM_OBL_RC_ACT;
+        its manual fallbacks need RC, without which NAV_RCL_ACT decides (default: return)."""
+        act = int(self.params["COM_OBL_RC_ACT"])
+        if act in (0, 1, 2):
+            if self.rc_available:
+                return modes.POSCTL if act == 0 else modes.ALTCTL
+            act = {1: 5, 2: 3, 3: 4}.get(int(self.params["NAV_RCL_ACT"]), 5)
+        return {3: modes.RTL, 4: modes.LAND}.get(act, modes.HOLD)  # 5 hold; 6, 7 not simulated
 
     def _auto_speed(self, limits: Limits) -> float:
         speed = self._auto_speed_m_s or self.params["MPC_XY_CRUISE"]
@@ -350,7 +451,8 @@ class Autopilot:
             if not was_in_air and self.armed:
                 self._left_ground_since_arming = True
                 if not self.has_flown:
-                    self._emit("airborne", "Takeoff detected")
+                    self._emit("airborne", texts.TAKEOFF_DETECTED)
+                self._auto_home()
                 self.has_flown = True
             if self.mode == modes.TAKEOFF:
                 self.landed_state = LandedState.TAKEOFF
@@ -365,14 +467,14 @@ class Autopilot:
                 self.landed_state = LandedState.IN_AIR
             return
         if was_in_air:
-            self._emit("landed", "Landing detected")
+            self._emit("landed", texts.LANDING_DETECTED)
         self.landed_state = LandedState.ON_GROUND
         if self.armed and self._left_ground_since_arming:
             if self._on_ground_since_sim_s is None:
                 self._on_ground_since_sim_s = now_sim_s
             delay = self.params["COM_DISARM_LAND"]
             if delay >= 0.0 and now_sim_s - self._on_ground_since_sim_s >= delay:
-                self.disarm(reason="Disarmed after landing")
+                self.disarm(reason=texts.DISARMED_LANDING)
 
     def _battery_failsafe(self) -> None:
         frac, p = self.battery_fraction, self.params
@@ -382,16 +484,17 @@ class Autopilot:
             self._battery_level = min(self._battery_level, level)
             return
         self._battery_level = level
+        # PX4 says these with MAVLink events only; STATUSTEXT only "Failsafe activated".
         if level == 1:
-            self._emit("battery", f"Low battery: {frac:.0%} remaining", 4)
+            self._emit("battery", f"Low battery level, return advised ({frac:.0%})", 4, False)
         elif level == 2:
-            self._emit("battery", f"Critical battery: {frac:.0%}, returning", 2)
+            self._emit("battery", f"Critical battery level ({frac:.0%})", 2, False)
             if self.armed and self.in_air and self.mode not in (modes.RTL, modes.LAND):
-                self.return_to_launch()
+                self._failsafe(modes.RTL, "battery")
         elif level == 3:
-            self._emit("battery", f"Emergency battery: {frac:.0%}, landing", 1)
+            self._emit("battery", f"Emergency battery level ({frac:.0%})", 1, False)
             if self.armed and self.in_air and self.mode != modes.LAND:
-                self.land()
+                self._failsafe(modes.LAND, "battery")
 
     def _fence_check(self) -> None:
         if self.fence.empty or not (self.armed and self.in_air):
@@ -403,10 +506,15 @@ class Autopilot:
             return
         self._fence_breached = True
         action = int(self.params["GF_ACTION"])
-        self._emit("geofence", "Geofence breached", 2)
         if action == 2 and self.mode not in (modes.RTL, modes.LAND):
-            self._set_mode(modes.HOLD)
+            self._failsafe(modes.HOLD, "geofence", texts.GEOFENCE)
+            # PX4 (navigator geofence_breach_check, GF_PREDICT 0) loiters where the breach was
+            # seen: the vehicle brakes past it and comes back to hold there.
+            s = self.state
+            self._hold_target = (s.east_m, s.north_m, s.up_m)
         elif action == 3 and self.mode not in (modes.RTL, modes.LAND):
-            self.return_to_launch()
+            self._failsafe(modes.RTL, "geofence", texts.GEOFENCE)
         elif action == 5:
-            self.land()
+            self._failsafe(modes.LAND, "geofence", texts.GEOFENCE)
+        else:  # 0 none, 1 warning (and 4 terminate, not simulated)
+            self._emit("geofence", texts.GEOFENCE, texts.CRITICAL)

@@ -9,12 +9,19 @@ MAVSDK measure those on theirs.
 Timestamps the simulator publishes (MAVLink ``time_boot_ms``, SYSTEM_TIME, datagram ``t``,
 truth records) are sim time mapped to unix seconds: ``unix = start_unix + sim_elapsed``, so a
 ground station that takes its clock from the vehicle sees one consistent time base.
+
+Imperfections of a real SITL autopilot, on request: ``rate_error`` makes sim time run at
+``speedup * (1 + rate_error)`` (PX4 SIH at speed factor K runs about 0.98 K), and
+``system_time="host"`` makes SYSTEM_TIME carry the host's wall clock in ``time_unix_usec``
+while ``time_boot_ms`` stays sim time, as PX4 SITL does (its CLOCK_REALTIME is the host's).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+
+SYSTEM_TIME_SOURCES = ("sim", "host")
 
 
 class SimClock:
@@ -29,13 +36,24 @@ class SimClock:
         self,
         speedup: float = 1.0,
         *,
+        rate_error: float = 0.0,
+        system_time: str = "sim",
         monotonic: Callable[[], float] = time.monotonic,
         unix_now: Callable[[], float] = time.time,
         max_lag_s: float = 0.25,
     ) -> None:
         if not speedup > 0.0:
             raise ValueError(f"speedup must be > 0, got {speedup}")
+        if not -0.5 <= rate_error <= 0.5:
+            raise ValueError(f"rate_error must be in [-0.5, 0.5], got {rate_error}")
+        if system_time not in SYSTEM_TIME_SOURCES:
+            raise ValueError(f"system_time must be one of {SYSTEM_TIME_SOURCES}")
         self.speedup = float(speedup)
+        """The nominal speed-up K (telemetry rates scale with it)."""
+        self.rate = self.speedup * (1.0 + rate_error)
+        """Sim seconds per wall second: K, or K * (1 + rate_error)."""
+        self.system_time = system_time
+        self._unix_now = unix_now
         self._monotonic = monotonic
         self._wall0 = monotonic()
         self.start_unix = unix_now()
@@ -57,7 +75,7 @@ class SimClock:
         now = self._monotonic()
         wall_dt = min(now - self._last_wall, self._max_lag_s)
         self._last_wall = now
-        self._due_s = max(self._due_s + max(wall_dt, 0.0) * self.speedup, self.sim_s)
+        self._due_s = max(self._due_s + max(wall_dt, 0.0) * self.rate, self.sim_s)
         return self._due_s
 
     def unix_of(self, sim_s: float) -> float:
@@ -67,6 +85,10 @@ class SimClock:
     def unix(self) -> float:
         """Unix seconds of the current sim time."""
         return self.start_unix + self.sim_s
+
+    def system_time_unix(self) -> float:
+        """SYSTEM_TIME.time_unix_usec / 1e6: sim unix time, or the host's clock ("host")."""
+        return self._unix_now() if self.system_time == "host" else self.unix()
 
     def time_boot_ms(self) -> int:
         """MAVLink ``time_boot_ms`` (uint32) of the current sim time."""

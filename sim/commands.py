@@ -12,15 +12,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink
 
+from mexgen_gcs.core.geo import LocalFrame
 from sim import px4_modes as modes
-from sim.autopilot import Result
-
-if TYPE_CHECKING:
-    from sim.vehicle import MavlinkVehicle
+from sim.autopilot import Autopilot, Result
+from sim.clock import SimClock
 
 FORCE_MAGIC = 21196
 MAX_REPOSITION_M = 20_000.0
@@ -38,10 +37,32 @@ class Command:
     relative_alt: bool = False
 
 
+class VehiclePort(Protocol):
+    """What the command protocol needs from the MAVLink side (``sim.vehicle.MavlinkVehicle``),
+    stated here so that this module does not import it (no import cycle)."""
+
+    ap: Autopilot
+    clock: SimClock
+    frame: LocalFrame
+    mav: mavlink.MAVLink
+
+    def send(self, msg: Any) -> None: ...
+
+    def send_message(self, msg_id: int) -> bool: ...
+
+    def can_stream(self, msg_id: int) -> bool: ...
+
+    def reset_intervals(self, msg_id: int | None = None) -> None: ...
+
+    def set_interval(self, msg_id: int, interval_s: float | None) -> None: ...
+
+    def command_done(self, command: int, result: int) -> None: ...
+
+
 class CommandHandler:
     """Dispatches commands to the autopilot and acks them."""
 
-    def __init__(self, vehicle: MavlinkVehicle) -> None:
+    def __init__(self, vehicle: VehiclePort) -> None:
         self.v = vehicle
         self._handlers: dict[int, Callable[[Command], Result]] = {
             _C.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
@@ -86,6 +107,7 @@ class CommandHandler:
                 result = Result.DENIED
         self.v.send(self.v.mav.command_ack_encode(
             cmd.command, int(result), 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        self.v.command_done(cmd.command, int(result))
 
     # -- helpers ------------------------------------------------------------------------------
 
@@ -132,7 +154,7 @@ class CommandHandler:
         if not math.isfinite(alt):
             return self.v.ap.takeoff(None)
         rel = alt + self.v.ap.home_enu_m[2] if cmd.relative_alt else alt - self.v.frame.alt0_m
-        return self.v.ap.takeoff(rel - self.v.ap.home_enu_m[2])
+        return self.v.ap.takeoff(rel)
 
     def _land(self, cmd: Command) -> Result:
         p = cmd.params

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sim import px4_texts as texts
 from sim.kinematics import KinematicState, Limits, VelocityCommand, velocity_towards
 
 
@@ -48,7 +49,7 @@ class ReturnToLaunch:
         he, hn = self.home_east_m, self.home_north_m
         if self.phase == "climb":
             if s.up_m >= self.alt_m - 0.5:
-                self.phase, message = "return", "RTL: returning home"
+                self.phase = "return"  # PX4 announced the return when RTL started
             else:
                 if self._climb_xy is None:
                     self._climb_xy = stopping_point(s, lim, True)[:2]
@@ -57,7 +58,7 @@ class ReturnToLaunch:
         if self.phase == "return":
             dist = math.hypot(he - s.east_m, hn - s.north_m)
             if dist < 1.0 and s.ground_speed_m_s < 0.5:
-                self.phase, message = "land", "RTL: landing at home"
+                self.phase, message = "land", texts.RTL_LAND
             else:
                 ve, vn, vu = velocity_towards(s, he, hn, self.alt_m, lim, speed_m_s=speed_m_s)
                 yaw = math.degrees(math.atan2(he - s.east_m, hn - s.north_m)) \

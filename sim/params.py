@@ -34,6 +34,12 @@ SPECS: tuple[ParamSpec, ...] = (
     ParamSpec("MPC_LAND_ALT2", 2.0, 0.0, 100.0, "below this height land at MPC_LAND_SPEED, m"),
     ParamSpec("RTL_RETURN_ALT", 30.0, 0.0, 500.0, "RTL return height above home, m"),
     ParamSpec("COM_OF_LOSS_T", 1.0, 0.0, 60.0, "offboard setpoint loss timeout, s (wall)"),
+    ParamSpec("COM_OBL_RC_ACT", 0.0, 0.0, 7.0,
+              "offboard loss action: 0 position, 1 altitude, 2 stabilized (these need RC, "
+              "else NAV_RCL_ACT), 3 return, 4 land, 5 hold"),
+    ParamSpec("NAV_RCL_ACT", 2.0, 0.0, 6.0,
+              "RC loss action, also the offboard-loss fallback without RC: 1 hold, 2 return, "
+              "3 land"),
     ParamSpec("COM_DISARM_PRFLT", 10.0, -1.0, 20.0,
               "auto-disarm if no takeoff within this after arming, s (wall); <= 0 off"),
     ParamSpec("COM_DISARM_LAND", 2.0, -1.0, 20.0, "auto-disarm after landing, s; < 0 off"),

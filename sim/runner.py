@@ -38,6 +38,7 @@ from sim.scenario import (
     initial_params,
     seed_of,
 )
+from sim.takeover import NO_TAKEOVER, TakeoverLog, pilot_mode
 from sim.truth import TruthWriter
 from sim.vehicle import MavlinkVehicle
 
@@ -66,19 +67,23 @@ class Simulation:
     def __init__(self, mission: Mission, options: SimOptions) -> None:
         self.mission = mission
         self.options = options
-        self.clock = SimClock(options.speedup)
+        self.clock = SimClock(options.speedup, rate_error=options.clock_rate_error,
+                              system_time=options.system_time)
         self.frame = mission.local_frame()
         self.seed = seed_of(mission, options)
-        seeds = np.random.SeedSequence(self.seed).spawn(2)
-        world_rng, radio_rng = (np.random.default_rng(s) for s in seeds)
+        seeds = np.random.SeedSequence(self.seed).spawn(3)
+        world_rng, radio_rng, vehicle_rng = (np.random.default_rng(s) for s in seeds)
         self.truth = TruthWriter(options.truth_dir)
         self.faults = FaultSchedule(faults_of(mission, options))
         self.autopilot = Autopilot(ParamTable(initial_params(mission)), airframe_limits(mission),
-                                   mission.sim.battery_endurance_s)
+                                   mission.sim.battery_endurance_s, self.frame.alt0_m,
+                                   vehicle_rng)
         self._mav_transport: asyncio.DatagramTransport | None = None
         targets = [options.mavlink] + ([options.gcs] if options.gcs else [])
+        self.takeover: TakeoverLog | None = None
         self.vehicle = MavlinkVehicle(self.autopilot, self.clock, self.frame, self._mav_sendto,
-                                      targets, options.sysid, on_fence=self._fence_accepted)
+                                      targets, options.sysid, on_fence=self._fence_accepted,
+                                      on_command=self._command_received)
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
                               self.clock.unix_of, radio_rng)
@@ -130,7 +135,8 @@ class Simulation:
                 loop.remove_signal_handler(sig)
             self.truth.write(self.clock.unix(), "end", sim_s=round(self.clock.sim_s, 3),
                              reason="signal" if self._stop.is_set() else "landed",
-                             radio=self.radio.stats, mavlink=self.vehicle.stats)
+                             radio=self.radio.stats, mavlink=self.vehicle.stats,
+                             **self._takeover_counts())
             self.truth.close()
             transport.close()
             self._radio_sock.close()
@@ -151,7 +157,8 @@ class Simulation:
         wall = self.clock.wall_s()
         while self.clock.sim_s < due - 1e-9:
             now = self.clock.sim_s
-            t_next = min(due, self.radio.next_event_s(), self.faults.next_start_s(now),
+            radio_next = self.radio.next_event_s() if self.options.radios else math.inf
+            t_next = min(due, radio_next, self.faults.next_start_s(now),
                          self._next_vehicle_truth_s, now + MAX_PHYSICS_DT_S)
             t_next = max(t_next, now + 1e-6)
             self.autopilot.step(t_next - now, t_next, wall)
@@ -169,8 +176,9 @@ class Simulation:
         if now + 1e-9 >= self._next_vehicle_truth_s:
             self._vehicle_truth()
             self._next_vehicle_truth_s = math.floor(now + 1e-9) + TRUTH_VEHICLE_PERIOD_S
-        for datagram in self.radio.advance(now, wall, self._pose()):
-            self._radio_send(datagram)
+        if self.options.radios:
+            for datagram in self.radio.advance(now, wall, self._pose()):
+                self._radio_send(datagram)
 
     def _pose(self) -> ReceiverPose:
         s = self.autopilot.state
@@ -180,7 +188,10 @@ class Simulation:
         return ReceiverPose(s.east_m, s.north_m, s.up_m, s.yaw_deg, None, None, None)
 
     def _apply_fault(self, what: str, fault: Fault) -> None:
-        self.truth.write(self.clock.unix(), "fault", phase=what, **fault.describe())
+        extra: dict[str, Any] = {}
+        if fault.kind == "pilot_takeover":
+            extra = self._pilot(what, fault)
+        self.truth.write(self.clock.unix(), "fault", phase=what, **fault.describe(), **extra)
         print(f"sim: fault {fault.kind} {what} at sim {self.clock.sim_s:.1f} s", file=sys.stderr,
               flush=True)
         if fault.kind == "link_drop":
@@ -191,12 +202,41 @@ class Simulation:
             ap = self.autopilot
             ap.battery_fraction = max(0.0, ap.battery_fraction - fault.percent / 100.0)
 
+    def _pilot(self, what: str, fault: Fault) -> dict[str, Any]:
+        """The pilot's RC mode switch; returns fields for the fault record."""
+        ap = self.autopilot
+        before = px4_modes.name(ap.mode)
+        if what == "start":
+            stats = self.vehicle.stats
+            self.takeover = TakeoverLog(fault, stats["rx_commands"], stats["rx_setpoints"])
+            ap.pilot_switch(pilot_mode(fault))
+        else:
+            ap.pilot_switch(px4_modes.LAND)
+            if self.takeover is not None:
+                self.takeover.landed_by_pilot = True
+        return {"mode_before": before, "mode_after": px4_modes.name(ap.mode),
+                **self._takeover_counts()}
+
+    def _takeover_counts(self) -> dict[str, Any]:
+        if self.takeover is None:
+            return dict(NO_TAKEOVER)
+        return self.takeover.counts(self.vehicle.stats)
+
+    def _command_received(self, command: int, result: int) -> None:
+        if self.takeover is None:
+            return
+        name = self.takeover.note_command(command)
+        self.truth.write(self.clock.unix(), "event", kind="gcs_command_after_takeover",
+                         text=f"{name} -> {result}", command=command, name=name, result=result,
+                         mode=px4_modes.name(self.autopilot.mode))
+
     # -- truth -----------------------------------------------------------------------------
 
     def _write_header(self, listen: Any) -> None:
         m, o = self.mission, self.options
         self.truth.write(
             self.clock.unix(), "sim", mission=m.name, seed=self.seed, speedup=o.speedup,
+            clock_rate=self.clock.rate, system_time=o.system_time,
             start_unix=self.clock.start_unix, wall_start_unix=time.time(), sysid=o.sysid,
             home={"lat_deg": m.home.lat_deg, "lon_deg": m.home.lon_deg, "alt_m": m.home.alt_m},
             mavlink=list(o.mavlink), radio=list(o.radio), listen=[listen[0], listen[1]],

@@ -25,6 +25,8 @@ class SimOptions:
     """Command-line choices (see ``python -m sim --help``)."""
 
     speedup: float = 1.0
+    clock_rate_error: float = 0.0
+    system_time: str = "sim"
     seed: int | None = None
     mavlink: Address = ("127.0.0.1", 14540)
     gcs: Address | None = None
@@ -34,6 +36,7 @@ class SimOptions:
     sysid: int = 1
     extra_faults: tuple[Fault, ...] = field(default=())
     keep_running: bool = False
+    radios: bool = True
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:

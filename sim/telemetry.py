@@ -57,6 +57,7 @@ class TelemetryBuilder:
         self.ap = autopilot
         self.clock = clock
         self.frame = frame
+        self._statustext_id = 0
 
     def geodetic(self, east_m: float, north_m: float, up_m: float) -> tuple[float, float, float]:
         lat, lon, alt = self.frame.to_geodetic(east_m, north_m, up_m)
@@ -77,13 +78,20 @@ class TelemetryBuilder:
         if ap.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
         main = ap.mode[0]
-        if main in (modes.MainMode.AUTO, modes.MainMode.OFFBOARD):
+        # As PX4's HEARTBEAT stream: AUTO|GUIDED|STABILIZE in auto modes, STABILIZE only in
+        # offboard, MANUAL_INPUT|STABILIZE in the position/altitude modes.
+        if main == modes.MainMode.AUTO:
             base |= (mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
                      | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED)
+        elif main == modes.MainMode.OFFBOARD:
+            base |= mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
         elif main in (modes.MainMode.POSCTL, modes.MainMode.ALTCTL):
             base |= (mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
                      | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED)
-        status = mavlink.MAV_STATE_ACTIVE if ap.armed else mavlink.MAV_STATE_STANDBY
+        if not ap.armed:
+            status = mavlink.MAV_STATE_STANDBY
+        else:  # PX4: CRITICAL while a failsafe action is in charge
+            status = mavlink.MAV_STATE_CRITICAL if ap.failsafe else mavlink.MAV_STATE_ACTIVE
         return self.mav.heartbeat_encode(
             mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_PX4, base, modes.encode(ap.mode),
             status, 3)
@@ -130,7 +138,9 @@ class TelemetryBuilder:
 
     def gps_raw_int(self) -> Any:
         s = self.ap.state
-        usec = int(self.clock.unix() * 1e6)
+        # A GPS's UTC time; PX4 SIH's GPS has none and sends time since boot instead.
+        usec = int((self.clock.sim_s if self.clock.system_time == "host" else self.clock.unix())
+                   * 1e6)
         if not self.ap.gps_ok:
             return self.mav.gps_raw_int_encode(usec, mavlink.GPS_FIX_TYPE_NO_FIX, 0, 0, 0,
                                                65535, 65535, 65535, 65535, 0)
@@ -143,9 +153,10 @@ class TelemetryBuilder:
     def home_position(self) -> Any:
         lat, lon, alt = self.home_geodetic()
         he, hn, hu = self.ap.home_enu_m
+        # time_usec: when home was set, microseconds since boot (PX4 sends its hrt time).
         return self.mav.home_position_encode(
             round(lat * 1e7), round(lon * 1e7), round(alt * 1000.0), hn, he, -hu,
-            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(self.clock.unix() * 1e6))
+            [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, int(self.ap.home_set_sim_s * 1e6))
 
     def extended_sys_state(self) -> Any:
         return self.mav.extended_sys_state_encode(
@@ -168,7 +179,7 @@ class TelemetryBuilder:
             current_ca, consumed_mah, -1, remaining, time_remaining_s, charge)
 
     def system_time(self) -> Any:
-        return self.mav.system_time_encode(int(self.clock.unix() * 1e6),
+        return self.mav.system_time_encode(int(self.clock.system_time_unix() * 1e6),
                                            self.clock.time_boot_ms())
 
     def vfr_hud(self) -> Any:
@@ -183,8 +194,13 @@ class TelemetryBuilder:
             CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0,
             0x5349_4D00 + sysid)
 
-    def statustext(self, text: str, severity: int) -> Any:
-        return self.mav.statustext_encode(severity, text.encode("ascii", "replace")[:50])
+    def statustext(self, text: str, severity: int) -> list[Any]:
+        """As PX4: texts longer than 50 bytes go in 50-byte chunks (``chunk_seq`` 0, 1, ...)
+        sharing one ``id``; a text of exactly 50 bytes or less is one message."""
+        data = text.encode("ascii", "replace")
+        self._statustext_id = (self._statustext_id + 1) & 0xFFFF
+        return [self.mav.statustext_encode(severity, data[i:i + 50], self._statustext_id, seq)
+                for seq, i in enumerate(range(0, max(len(data), 1), 50))]
 
     def by_id(self) -> dict[int, Any]:
         """Message id -> zero-argument builder, for the scheduler and REQUEST_MESSAGE."""

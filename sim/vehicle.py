@@ -82,6 +82,7 @@ class MavlinkVehicle:
         targets: list[Address],
         sysid: int = 1,
         on_fence: Callable[[Fence], None] | None = None,
+        on_command: Callable[[int, int], None] | None = None,
     ) -> None:
         if not 1 <= sysid <= 255:
             raise ValueError(f"sysid must be 1..255, got {sysid}")
@@ -104,7 +105,9 @@ class MavlinkVehicle:
         self.reset_intervals()
         self._next_due: dict[int, float] = {}
         self.stats: dict[str, int] = {"rx_messages": 0, "rx_bad": 0, "rx_unknown": 0,
-                                      "rx_ignored": 0, "errors": 0, "tx_messages": 0}
+                                      "rx_ignored": 0, "errors": 0, "tx_messages": 0,
+                                      "rx_commands": 0, "rx_setpoints": 0}
+        self._on_command = on_command
         self._last_error_wall_s = -math.inf
         self._last_mode = autopilot.mode
         self._last_armed = autopilot.armed
@@ -134,7 +137,8 @@ class MavlinkVehicle:
         self.stats["tx_messages"] += 1
 
     def statustext(self, text: str, severity: int = mavlink.MAV_SEVERITY_INFO) -> None:
-        self.send(self.telemetry.statustext(text, severity))
+        for msg in self.telemetry.statustext(text, severity):
+            self.send(msg)
 
     # -- telemetry scheduling ---------------------------------------------------------------
 
@@ -199,7 +203,8 @@ class MavlinkVehicle:
         self._log_events.extend(events)
         if not self.link_down:
             for ev in events:
-                self.statustext(ev.text, ev.severity)
+                if ev.announce:
+                    self.statustext(ev.text, ev.severity)
         if self.ap.mode != self._last_mode or self.ap.armed != self._last_armed:
             self._last_mode, self._last_armed = self.ap.mode, self.ap.armed
             if not self.link_down:
@@ -216,6 +221,12 @@ class MavlinkVehicle:
         self._announce_changes()
         events, self._log_events = self._log_events, []
         return events
+
+    def command_done(self, command: int, result: int) -> None:
+        """Called by the command handler after each COMMAND_ACK it sent."""
+        self.stats["rx_commands"] += 1
+        if self._on_command is not None:
+            self._on_command(command, result)
 
     # -- receiving -------------------------------------------------------------------------
 
@@ -268,8 +279,10 @@ class MavlinkVehicle:
         elif kind == "COMMAND_INT":
             self.commands.command_int(msg)
         elif kind == "SET_POSITION_TARGET_LOCAL_NED":
+            self.stats["rx_setpoints"] += 1
             self._setpoint(from_local_ned(msg, self.ap.state), now)
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self.stats["rx_setpoints"] += 1
             self._setpoint(from_global_int(msg, self.frame, self.ap.home_enu_m[2]), now)
         elif kind in ("PARAM_REQUEST_READ", "PARAM_REQUEST_LIST", "PARAM_SET"):
             self._param(msg)

@@ -170,3 +170,24 @@ def test_handlers_are_called_with_args(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setattr(cli, "_test_handler", raises_vehicle, raising=False)
     assert cli.main(["replay", "x"]) == 1
     assert "arm failed: DENIED" in capsys.readouterr().err
+
+
+def _flags(parser: argparse.ArgumentParser) -> set[str]:
+    return {opt for action in parser._actions for opt in action.option_strings
+            if opt.startswith("--") and opt not in ("--help",)}
+
+
+def test_every_command_and_flag_is_documented() -> None:
+    """docs/cli.md lists every subcommand and every flag the parser defines."""
+    text = (REPO / "docs" / "cli.md").read_text(encoding="utf-8")
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(sub.choices) == set(cli.HANDLERS) | {"check"}
+    for name, subparser in sub.choices.items():
+        assert f"## `mexgen-gcs {name}" in text, name
+        for flag in _flags(subparser):
+            assert f"`{flag}" in text, f"{name} {flag}"
+    for flag in _flags(parser):
+        assert f"`{flag}" in text, flag
+    for code in ("| 0 |", "| 1 |", "| 2 |"):
+        assert code in text

@@ -1,5 +1,5 @@
 """Post-flight analysis of flight logs: reports and plots, comparison of several flights,
-path-loss calibration, GIS exports, and planner-in-the-loop replay (see ARCHITECTURE.md).
+path-loss calibration, GIS exports, and planner-in-the-loop replay (see docs/architecture.md).
 
 Frame: local ENU metres about the mission home throughout, WGS84 for lat/lon outputs.
 Entry points: ``mexgen-gcs analyze`` and ``mexgen-gcs replay`` (``analysis.cli``); the

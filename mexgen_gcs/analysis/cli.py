@@ -95,10 +95,8 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     except (LogFormatError, ConfigError) as exc:
         _err("analyze", str(exc))
         return EXIT_BAD_INPUT
-    for f in flights:
-        if f.torn_last_line:
-            print(f"note: {f.path} ends with a torn line (a crash while writing); skipped it",
-                  file=sys.stderr)
+    for f, truth in zip(flights, truths, strict=True):
+        _notes(f, truth)
     out_arg = getattr(args, "out", None)
     if len(flights) == 1:
         code = _analyze_one(flights[0], truths[0], Path(out_arg) if out_arg else None,
@@ -111,6 +109,17 @@ def cmd_analyze(args: argparse.Namespace) -> int:
     print(f"analysed {len(flights)} log{'s' if len(flights) > 1 else ''} in "
           f"{time.perf_counter() - t0:.1f} s", file=sys.stderr)
     return code
+
+
+def _notes(flight: Any, truth: Any = None) -> None:
+    """What was skipped while reading, on stderr."""
+    if flight.torn_last_line:
+        print(f"note: {flight.path} ends with a torn line (a crash while writing); skipped it",
+              file=sys.stderr)
+    if flight.damage:
+        print(f"note: {flight.path}: {flight.damage.describe()}", file=sys.stderr)
+    if truth is not None and truth.damage:
+        print(f"note: {truth.path}: {truth.damage.describe()}", file=sys.stderr)
 
 
 def _analyze_one(flight: Any, truth: Any, out: Path | None, export: bool) -> int:
@@ -224,6 +233,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     except (LogFormatError, ConfigError) as exc:
         _err("replay", str(exc))
         return EXIT_BAD_INPUT
+    _notes(flight)
     method = method or default_other_method(flight.method)
     headless = bool(getattr(args, "headless", False)) or not sys.stdout.isatty()
     run_ui = None
@@ -251,8 +261,11 @@ def _run_ui(run_ui: Callable[..., Any], flight: Any, steps: Sequence[Any],
     truth_path = find_truth(flight.log_dir)
     try:
         truth = load_truth(truth_path) if truth_path is not None else None
-    except LogFormatError:
+    except LogFormatError as exc:
+        print(f"note: no ground truth shown: {exc}", file=sys.stderr)
         truth = None
+    if truth is not None and truth.damage:
+        print(f"note: {truth.path}: {truth.damage.describe()}", file=sys.stderr)
     snaps = build_snapshots(flight, steps, truth)
     out = run_ui(snaps, speedup=speedup)
     if inspect.isawaitable(out):

@@ -6,14 +6,14 @@ detection and plan records already are; telemetry's WGS84 positions are converte
 mission's local frame. Headings are compass degrees (0 north, clockwise). Times are unix
 seconds of the mission clock (sim time for a sped-up SITL flight).
 
-The log is read by ``io.flightlog.read_flight_log`` (a torn last line is skipped; an unknown or
-newer format version raises ``LogFormatError``). The mission is rebuilt from the header's
+The log is read by ``io.flightlog.read_flight_log`` into the typed records of ``io.records``
+(damaged records and a torn last line are skipped and counted in ``damage``; an unknown or newer
+format version raises ``LogFormatError``). The mission is rebuilt from the header's
 resolved mission (falling back to the mission file text) with the one config schema.
 """
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -37,7 +37,10 @@ from mexgen_gcs.config import Mission, parse_mission
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.errors import ConfigError, LogFormatError
+from mexgen_gcs.io import records as rec
 from mexgen_gcs.io.flightlog import FlightLog, read_flight_log
+from mexgen_gcs.io.logread import Damage
+from mexgen_gcs.io.records import MissionHeader, Result
 
 FloatArray = NDArray[np.float64]
 
@@ -60,9 +63,10 @@ class FlightData:
     clouds: dict[str, list[tuple[float, FloatArray]]]
     plans: list[PlanRecord]
     events: list[dict[str, Any]]
+    """Event records as dicts: `t`, `type`, `kind` plus free fields."""
     errors: list[dict[str, Any]]
     radio_heartbeats: int
-    result: dict[str, Any] | None
+    result: Result | None
     t_start: float
     t_end: float
     t_airborne: float | None
@@ -79,8 +83,13 @@ class FlightData:
         return self.log.path.parent
 
     @property
-    def header(self) -> dict[str, Any]:
+    def header(self) -> MissionHeader:
         return self.log.header
+
+    @property
+    def damage(self) -> Damage:
+        """Damaged records of the log that were skipped, by reason and line."""
+        return self.log.damage
 
     @property
     def method(self) -> str:
@@ -114,7 +123,7 @@ def resolve_log_file(path: str | os.PathLike[str]) -> Path:
     return p / "flight.jsonl" if p.is_dir() else p
 
 
-def mission_from_header(header: Mapping[str, Any], where: str) -> Mission:
+def mission_from_header(header: MissionHeader | Mapping[str, Any], where: str) -> Mission:
     """Rebuild the flown mission from the log header: the resolved mission dict first (what
     flew, overrides included), else the mission file text. LogFormatError if neither parses."""
     problems: list[str] = []
@@ -140,38 +149,38 @@ def load_flight(path: str | os.PathLike[str]) -> FlightData:
     log = read_flight_log(resolve_log_file(path))
     mission = mission_from_header(log.header, str(log.path))
     frame = mission.local_frame()
-    by_type: dict[str, list[dict[str, Any]]] = {}
-    for rec in log.records:
-        by_type.setdefault(str(rec.get("type")), []).append(rec)
+    by_type: dict[str, list[Any]] = {}
+    for record in log.records:
+        by_type.setdefault(record.type, []).append(record)
     telemetry = _telemetry(by_type.get("telemetry", []), frame)
     detections = _detections(by_type.get("detection", []))
     estimates = _estimates(by_type.get("estimate", []), mission.tag_ids)
     clouds: dict[str, list[tuple[float, FloatArray]]] = {t: [] for t in mission.tag_ids}
-    for rec in by_type.get("cloud", []):
-        pts = np.asarray([[num(a), num(b)] for a, b in rec.get("en_m") or []], dtype=np.float64)
-        clouds.setdefault(str(rec.get("tag")), []).append((num(rec["t"]), pts.reshape(-1, 2)))
+    for c in by_type.get("cloud", []):
+        pts = np.asarray([[num(e), num(n)] for e, n in c.en_m], dtype=np.float64)
+        clouds.setdefault(c.tag, []).append((c.t, pts.reshape(-1, 2)))
     plans = [_plan(r) for r in by_type.get("plan", [])]
     plans.sort(key=lambda p: p.t)
-    events = by_type.get("event", [])
-    results = by_type.get("result", [])
+    events = [e.to_dict() for e in by_type.get("event", [])]
+    results: list[Result] = by_type.get("result", [])
     result = results[-1] if results else None
-    times = [num(r["t"]) for r in log.records if math.isfinite(num(r["t"]))]
-    t_start = num(log.header["t"])
-    t_end = max(times) if times else t_start
+    t_start = log.header.t
+    t_end = max((r.t for r in log.records), default=t_start)
     data = FlightData(
         log=log, mission=mission, frame=frame, area=mission.search_area(), telemetry=telemetry,
         track=_track(telemetry, detections), detections=detections, estimates=estimates,
-        clouds=clouds, plans=plans, events=events, errors=by_type.get("error", []),
+        clouds=clouds, plans=plans, events=events,
+        errors=[e.to_dict() for e in by_type.get("error", [])],
         radio_heartbeats=len(by_type.get("radio", [])), result=result, t_start=t_start,
         t_end=t_end, t_airborne=_t_airborne(result, events, estimates, mission),
         extra_counts={k: len(v) for k, v in by_type.items()})
     return data
 
 
-def _telemetry(recs: list[dict[str, Any]], frame: LocalFrame) -> Telemetry:
-    recs = sorted(recs, key=lambda r: num(r["t"]))
-    lat = nums(r.get("lat") for r in recs)
-    lon = nums(r.get("lon") for r in recs)
+def _telemetry(recs: list[rec.Telemetry], frame: LocalFrame) -> Telemetry:
+    recs = sorted(recs, key=lambda r: r.t)
+    lat = nums(r.lat for r in recs)
+    lon = nums(r.lon for r in recs)
     east = np.full(lat.size, np.nan)
     north = np.full(lat.size, np.nan)
     ok = np.isfinite(lat) & np.isfinite(lon)
@@ -179,67 +188,59 @@ def _telemetry(recs: list[dict[str, Any]], frame: LocalFrame) -> Telemetry:
         e, n, _ = frame.to_enu(lat[ok], lon[ok], frame.alt0_m)
         east[ok], north[ok] = e, n
     return Telemetry(
-        t=nums(r["t"] for r in recs), lat_deg=lat, lon_deg=lon, east_m=east, north_m=north,
-        rel_alt_m=nums(r.get("rel_alt_m") for r in recs),
-        v_east_m_s=nums(r.get("v_east_m_s") for r in recs),
-        v_north_m_s=nums(r.get("v_north_m_s") for r in recs),
-        yaw_deg=nums(r.get("yaw_deg") for r in recs),
-        battery_percent=nums(r.get("battery_percent") for r in recs),
-        armed=np.array([bool(r.get("armed")) for r in recs], dtype=bool),
-        in_air=np.array([bool(r.get("in_air")) for r in recs], dtype=bool),
-        connected=np.array([bool(r.get("connected")) for r in recs], dtype=bool),
-        mode=tuple(str(r.get("mode")) for r in recs))
+        t=nums(r.t for r in recs), lat_deg=lat, lon_deg=lon, east_m=east, north_m=north,
+        rel_alt_m=nums(r.rel_alt_m for r in recs),
+        v_east_m_s=nums(r.v_east_m_s for r in recs),
+        v_north_m_s=nums(r.v_north_m_s for r in recs),
+        yaw_deg=nums(r.yaw_deg for r in recs),
+        battery_percent=nums(r.battery_percent for r in recs),
+        armed=np.array([r.armed for r in recs], dtype=bool),
+        in_air=np.array([r.in_air for r in recs], dtype=bool),
+        connected=np.array([r.connected for r in recs], dtype=bool),
+        mode=tuple(r.mode for r in recs))
 
 
-def _detections(recs: list[dict[str, Any]]) -> Detections:
+def _detections(recs: list[rec.Detection]) -> Detections:
     rx = np.full((len(recs), 3), np.nan)
     for i, r in enumerate(recs):
-        v = r.get("rx_en_m")
-        if isinstance(v, list) and len(v) == 3:
-            rx[i] = [num(x) for x in v]
+        if r.rx_en_m is not None:
+            rx[i] = [num(x) for x in r.rx_en_m]
     return Detections(
-        t=nums(r["t"] for r in recs), t_pulse=nums(r.get("t_pulse") for r in recs),
-        tag=np.array([str(r.get("tag")) for r in recs], dtype=np.str_).reshape(-1),
-        rssi_db=nums(r.get("rssi_db") for r in recs), rx_enu_m=rx,
-        rx_yaw_deg=nums(r.get("rx_yaw_deg") for r in recs))
+        t=nums(r.t for r in recs), t_pulse=nums(r.t_pulse for r in recs),
+        tag=np.array([r.tag for r in recs], dtype=np.str_).reshape(-1),
+        rssi_db=nums(r.rssi_db for r in recs), rx_enu_m=rx,
+        rx_yaw_deg=nums(r.rx_yaw_deg for r in recs))
 
 
-def _estimates(recs: list[dict[str, Any]], tag_ids: tuple[str, ...]) -> dict[str, TagSeries]:
-    per: dict[str, list[dict[str, Any]]] = {t: [] for t in tag_ids}
+def _estimates(recs: list[rec.Estimate], tag_ids: tuple[str, ...]) -> dict[str, TagSeries]:
+    per: dict[str, list[rec.Estimate]] = {t: [] for t in tag_ids}
     for r in recs:
-        per.setdefault(str(r.get("tag")), []).append(r)
+        per.setdefault(r.tag, []).append(r)
     out: dict[str, TagSeries] = {}
     for tid, rows in per.items():
-        rows.sort(key=lambda r: num(r["t"]))
-        cov = np.full((len(rows), 2, 2), np.nan)
-        for i, r in enumerate(rows):
-            c = r.get("cov_pos_m2")
-            if isinstance(c, list) and len(c) == 2:
-                cov[i] = [[num(x) for x in row] for row in c]
+        rows.sort(key=lambda r: r.t)
+        cov = np.array([[[num(x) for x in row] for row in r.cov_pos_m2] for r in rows],
+                       dtype=np.float64).reshape(len(rows), 2, 2)
         out[tid] = TagSeries(
-            tag_id=tid, t=nums(r["t"] for r in rows),
-            existence=nums(r.get("existence") for r in rows),
-            east_m=nums(r.get("east_m") for r in rows),
-            north_m=nums(r.get("north_m") for r in rows),
-            v_east_m_s=nums(r.get("v_east_m_s") for r in rows),
-            v_north_m_s=nums(r.get("v_north_m_s") for r in rows), cov_pos_m2=cov,
-            radius_m=nums(r.get("radius_m") for r in rows),
-            localised=np.array([bool(r.get("localised")) for r in rows], dtype=bool),
-            update=tuple(str(r.get("update")) for r in rows))
+            tag_id=tid, t=nums(r.t for r in rows),
+            existence=nums(r.existence for r in rows),
+            east_m=nums(r.east_m for r in rows),
+            north_m=nums(r.north_m for r in rows),
+            v_east_m_s=nums(r.v_east_m_s for r in rows),
+            v_north_m_s=nums(r.v_north_m_s for r in rows), cov_pos_m2=cov,
+            radius_m=nums(r.radius_m for r in rows),
+            localised=np.array([r.localised for r in rows], dtype=bool),
+            update=tuple(r.update for r in rows))
     return out
 
 
-def _plan(r: dict[str, Any]) -> PlanRecord:
-    timing = r.get("timing_ms") or {}
-    ven = r.get("vehicle_en_m") or [math.nan, math.nan]
+def _plan(r: rec.Plan) -> PlanRecord:
     return PlanRecord(
-        t=num(r["t"]), method=str(r.get("method")),
-        targets=tuple(str(x) for x in r.get("targets") or ()),
-        headings_deg=tuple(num(h) for h in r.get("headings_deg") or ()),
-        rewards=tuple(None if x is None else num(x) for x in r.get("rewards") or ()),
-        chosen_heading_deg=num(r.get("chosen_heading_deg")),
-        timing_ms={str(k): num(v) for k, v in timing.items()},
-        vehicle_en_m=(num(ven[0]), num(ven[1])), all_pruned=bool(r.get("all_pruned")))
+        t=r.t, method=r.method, targets=tuple(r.targets), headings_deg=tuple(r.headings_deg),
+        rewards=tuple(r.rewards), chosen_heading_deg=r.chosen_heading_deg,
+        timing_ms=dict(r.timing_ms), vehicle_en_m=(num(r.vehicle_en_m[0]),
+                                                   num(r.vehicle_en_m[1])),
+        all_pruned=r.all_pruned)
 
 
 def _track(tel: Telemetry, det: Detections) -> Track:
@@ -269,19 +270,16 @@ def _track(tel: Telemetry, det: Detections) -> Track:
     return Track(t_all[order], e_all[order], n_all[order], u_all[order], y_all[order])
 
 
-def _t_airborne(result: dict[str, Any] | None, events: list[dict[str, Any]],
+def _t_airborne(result: Result | None, events: list[dict[str, Any]],
                 estimates: dict[str, TagSeries], mission: Mission) -> float | None:
     """The mission's time zero: exactly t - after_s of a localisation in the result, else the
     offboard start, else one pulse period before the first estimate."""
     if result is not None:
-        for info in (result.get("localised") or {}).values():
-            if isinstance(info, Mapping):
-                t, after = num(info.get("t")), num(info.get("after_s"))
-                if math.isfinite(t) and math.isfinite(after):
-                    return t - after
+        for info in result.localised.values():
+            return info.t - info.after_s
     for e in events:
         if e.get("kind") == "offboard_started":
-            return num(e["t"])
+            return float(e["t"])
     firsts = [float(s.t[0]) for s in estimates.values() if len(s)]
     if firsts:
         return min(firsts) - mission.receiver.pulse_period_s

@@ -19,6 +19,7 @@ from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.analysis.summary import FlightSummary, summarise
 from mexgen_gcs.analysis.truth import Truth
 from mexgen_gcs.errors import EstimationError
+from mexgen_gcs.io.logread import Damage
 
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
@@ -98,6 +99,12 @@ def _km(m: float) -> str:
     return f"{m / 1000.0:.2f} km"
 
 
+def _damage(lines: dict[str, list[int]]) -> str:
+    if not lines:
+        return "none"
+    return Damage(lines).describe()
+
+
 def report_document(flight: FlightData, s: FlightSummary,
                     fits: dict[str, PathLossFit]) -> Document:
     tot = s.totals
@@ -119,6 +126,7 @@ def report_document(flight: FlightData, s: FlightSummary,
         ("Radio heartbeats", str(tot.heartbeats)),
         ("Plans", str(tot.plans)),
         ("Radio rejects", ", ".join(f"{k} {v}" for k, v in tot.radio_rejects.items()) or "none"),
+        ("Damaged log records", _damage(tot.damaged_records)),
         ("Software", ", ".join(f"{k} {v}" for k, v in tot.software.items() if v) or "–"),
     ]
     sec.table(("", ""), rows)
@@ -126,6 +134,12 @@ def report_document(flight: FlightData, s: FlightSummary,
         sec.para("The log ends with a torn (partial) line, as after a crash; it was skipped.")
     if not tot.complete:
         sec.para("The log has no result record: the GCS did not finish the mission normally.")
+    if tot.damaged_records:
+        sec.para("Damaged records (not JSON, or not valid for their type) were skipped; the "
+                 "report is made of the rest of the log.")
+    if s.truth_damaged_records:
+        sec.para(f"The ground truth file had damaged records, skipped: "
+                 f"{_damage(s.truth_damaged_records)}.")
 
     sec = doc.section("Failsafe and safety events")
     if s.safety_events:

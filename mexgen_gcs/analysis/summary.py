@@ -98,6 +98,8 @@ class MissionTotals:
     complete: bool
     """The log ends with its result record."""
     torn_last_line: bool
+    damaged_records: dict[str, list[int]]
+    """Damaged records of the log that were skipped: reason -> line numbers."""
     tags_total: int
     tags_localised: int
     detections: int
@@ -115,6 +117,8 @@ class FlightSummary:
     timing: tuple[StageTiming, ...]
     safety_events: tuple[SafetyEvent, ...]
     has_truth: bool
+    truth_damaged_records: dict[str, list[int]]
+    """Damaged records of the truth file that were skipped: reason -> line numbers."""
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -136,7 +140,8 @@ def summarise(flight: FlightData, truth: Truth | None = None) -> FlightSummary:
         log_file=str(flight.path), totals=mission_totals(flight),
         tags=tuple(tag_summary(flight, tid, truth) for tid in flight.tag_ids),
         timing=planner_timing(flight), safety_events=safety_events(flight),
-        has_truth=truth is not None)
+        has_truth=truth is not None,
+        truth_damaged_records=dict(truth.damage.lines) if truth is not None else {})
 
 
 def mission_totals(flight: FlightData) -> MissionTotals:
@@ -166,7 +171,8 @@ def mission_totals(flight: FlightData) -> MissionTotals:
         methods_used=methods, seed=flight.seed, start_utc=start, duration_s=duration,
         airborne_s=airborne_s, distance_flown_m=flight.track.distance_m(),
         end_reason=end_reason, exit_code=exit_code, complete=result is not None,
-        torn_last_line=flight.torn_last_line, tags_total=len(flight.tag_ids),
+        torn_last_line=flight.torn_last_line, damaged_records=dict(flight.damage.lines),
+        tags_total=len(flight.tag_ids),
         tags_localised=localised, detections=int(flight.detections.t.size),
         heartbeats=flight.radio_heartbeats, plans=len(flight.plans), radio_rejects=rejects,
         software=dict(flight.header.get("versions") or {}))

@@ -4,7 +4,8 @@
 file, line, key path, what was found and what is expected. See missions/README.md.
 """
 
-from mexgen_gcs.config.describe import describe, dump_resolved, mission_warnings
+from mexgen_gcs.config.checks import mission_warnings
+from mexgen_gcs.config.describe import describe, dump_resolved
 from mexgen_gcs.config.loader import MissionFileError, Problem, load_mission, parse_mission
 from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.config.urls import UdpAddress, parse_udp_url

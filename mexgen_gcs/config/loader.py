@@ -2,7 +2,9 @@
 
 Every problem names the file, the line (from YAML's node marks), the dotted key path
 (`planner.method`, `tags[1].id`), what was found and what is expected. All problems of a
-file are reported together, sorted by line.
+file are reported together, sorted by line. A hostile document (too large, too deep, an alias
+loop or an alias bomb) is refused by the bounded parser of `config.safe_yaml` with a one-line
+message before any schema work.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from pydantic import BaseModel, ValidationError
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from mexgen_gcs.config.mission import Mission
+from mexgen_gcs.config.safe_yaml import MAX_BYTES, compose_and_load
 from mexgen_gcs.config.schema import TAG_ID_PATTERN, KeyPath, RuleViolation
 from mexgen_gcs.config.sim_schema import FAULT_MODELS
 from mexgen_gcs.errors import ConfigError
@@ -68,6 +71,10 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
     if file.is_dir():
         raise ConfigError(f"{source}: is a directory; expected a mission file (.yaml)")
     try:
+        size = file.stat().st_size
+        if size > MAX_BYTES:
+            raise ConfigError(f"{source}: refused: the file is {size:,} bytes; a mission file "
+                              f"is at most {MAX_BYTES:,}")
         raw = file.read_bytes()
     except FileNotFoundError:
         raise ConfigError(f"{source}: no such mission file") from None
@@ -84,8 +91,7 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
 def parse_mission(text: str, source: str = "<mission>") -> Mission:
     """Validate mission YAML text; `source` names it in messages. Raises ConfigError."""
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
+        root, data = compose_and_load(text, source)
     except yaml.YAMLError as exc:
         raise ConfigError(_yaml_message(source, exc)) from None
     if root is None or data is None:

@@ -278,12 +278,6 @@ class Mission(Section):
             speed_max_m_s=sim_tag.speed_m_s[1],
         )
 
-    def warnings(self) -> list[str]:
-        """Things that load but will probably not do what the author expects."""
-        from mexgen_gcs.config.describe import mission_warnings
-
-        return mission_warnings(self)
-
 
 def _did_you_mean(word: str, choices: tuple[str, ...] | list[str]) -> str:
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)

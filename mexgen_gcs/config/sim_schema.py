@@ -127,12 +127,27 @@ class ClockOffset(_Fault):
     offset_s: Float = Field(ge=-86_400.0, le=86_400.0, description="Clock offset added, seconds.")
 
 
+class PilotTakeover(_Fault):
+    """A pilot takes over with the RC transmitter: a mode switch at `at_s`, LAND later."""
+
+    kind: Literal["pilot_takeover"] = Field(description="Fault kind.")
+    mode: Literal["POSCTL", "ALTCTL"] = Field(
+        "POSCTL", description="Mode the pilot switches to (sticks centred: brake and hold).")
+    land_after_s: Float = Field(
+        30.0, ge=0.0, le=86_400.0,
+        description="Simulated seconds after the takeover when the pilot switches to LAND "
+        "(the vehicle lands and disarms).",
+    )
+
+
 Fault = Annotated[
-    LinkDrop | GpsLoss | BatterySag | RadioSilence | DetectionDropout | Clutter | ClockOffset,
+    LinkDrop | GpsLoss | BatterySag | RadioSilence | DetectionDropout | Clutter | ClockOffset
+    | PilotTakeover,
     Field(discriminator="kind"),
 ]
 FAULT_MODELS: tuple[type[_Fault], ...] = (
     LinkDrop, GpsLoss, BatterySag, RadioSilence, DetectionDropout, Clutter, ClockOffset,
+    PilotTakeover,
 )
 
 

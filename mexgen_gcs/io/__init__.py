@@ -1,1 +1,1 @@
-"""mexgen_gcs.io layer (see ARCHITECTURE.md)."""
+"""mexgen_gcs.io layer: ports and adapters (see docs/architecture.md)."""

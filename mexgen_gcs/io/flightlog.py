@@ -1,11 +1,13 @@
 """Flight log: one directory per flight, `flight.jsonl` with one JSON object per line.
 
-Contract (ARCHITECTURE.md): every record has `t` (unix s) and `type`; the file is written
-append-only and flushed per record, so a crash loses at most the line being written, and
-readers skip a torn last line. The first record is `type: "mission"` with `format`
-("mexgen-flightlog"), `format_version`, the resolved mission, the mission file path and text,
-software versions, seed and method. Positions inside records are whatever the writer says
-(ENU metres about home for estimates, WGS84 for telemetry); the log does not convert frames.
+Contract (docs/flight-log.md; every record type is defined once, in `io.records`): every
+record has `t` (unix s) and `type`; the file is written append-only and flushed per record, so
+a crash loses at most the line being written. The reader skips a torn last line and damaged
+records (counted by reason and line, see `io.logread`). The first record is
+`type: "mission"` with `format` ("mexgen-flightlog"), `format_version`, the resolved mission,
+the mission file path and text, software versions, seed and method. Positions inside records
+are in the frame `io.records` names (ENU metres about home for estimates, WGS84 for
+telemetry); the log does not convert frames.
 
 Values are made JSON-safe on the way in: numpy scalars/arrays become Python numbers/lists,
 NaN and infinities become null, tuples become lists, dataclasses and pydantic models dicts.
@@ -29,12 +31,20 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from mexgen_gcs.errors import LogFormatError
+from mexgen_gcs.io.logread import Damage, check_format, read_jsonl
+from mexgen_gcs.io.records import (
+    FLIGHT_ADAPTER,
+    FLIGHT_LOG_FORMAT,
+    FLIGHT_LOG_VERSION,
+    MissionHeader,
+    Record,
+)
 
 if TYPE_CHECKING:
     from mexgen_gcs.config.mission import Mission
 
-FORMAT = "mexgen-flightlog"
-FORMAT_VERSION = 1
+FORMAT = FLIGHT_LOG_FORMAT
+FORMAT_VERSION = FLIGHT_LOG_VERSION
 LOG_FILE = "flight.jsonl"
 
 
@@ -175,22 +185,30 @@ def new_log_dir(base_dir: str | os.PathLike[str], name: str,
 
 @dataclass(frozen=True)
 class FlightLog:
-    """A read flight log. `torn_last_line` says a partial last line was skipped."""
+    """A read flight log: its valid records (typed, see `io.records`), what was skipped."""
 
     path: Path
-    records: list[dict[str, Any]]
+    records: list[Record]
     torn_last_line: bool = False
-    skipped_lines: int = field(default=0)
+    """A partial last line (a crash while writing) was skipped."""
+    damage: Damage = field(default_factory=Damage)
+    """Damaged records skipped, by reason and line."""
 
     @property
-    def header(self) -> dict[str, Any]:
+    def skipped_lines(self) -> int:
+        return self.damage.total + int(self.torn_last_line)
+
+    @property
+    def header(self) -> MissionHeader:
         """The first record (type mission)."""
-        return self.records[0]
+        head = self.records[0]
+        assert isinstance(head, MissionHeader)
+        return head
 
-    def of_type(self, type: str) -> Iterator[dict[str, Any]]:
-        return (r for r in self.records if r.get("type") == type)
+    def of_type(self, type: str) -> Iterator[Record]:
+        return (r for r in self.records if r.type == type)
 
-    def __iter__(self) -> Iterator[dict[str, Any]]:
+    def __iter__(self) -> Iterator[Record]:
         return iter(self.records)
 
     def __len__(self) -> int:
@@ -198,64 +216,22 @@ class FlightLog:
 
 
 def read_flight_log(path: str | os.PathLike[str]) -> FlightLog:
-    """Read `flight.jsonl` (or the directory holding it). Skips a torn last line; raises
-    LogFormatError for anything that is not a flight log of a format this code reads."""
+    """Read `flight.jsonl` (or the directory holding it).
+
+    Damaged records (not JSON, not valid for their type) and a torn last line are skipped and
+    reported in `damage` / `torn_last_line`. Raises LogFormatError when the file is not a
+    flight log, its format version is unknown or newer, its mission record is damaged, or
+    nothing but damage follows the mission record."""
     file = Path(path)
     if file.is_dir():
         file = file / LOG_FILE
-    try:
-        text = file.read_bytes().decode("utf-8", errors="replace")
-    except FileNotFoundError:
-        raise LogFormatError(f"{file}: no such flight log") from None
-    except OSError as exc:
-        raise LogFormatError(f"{file}: cannot read: {exc.strerror}") from None
-    lines = text.split("\n")
-    complete, last = lines[:-1], lines[-1]  # `last` is "" when the file ends with a newline
-    records: list[dict[str, Any]] = []
-    torn = False
-    for n, line in enumerate(complete, start=1):
-        if not line.strip():
-            continue
-        records.append(_parse_line(file, n, line, is_last=False))
-    if last.strip():
-        try:
-            records.append(_parse_line(file, len(complete) + 1, last, is_last=True))
-        except _TornLine:
-            torn = True
-    _check_header(file, records)
-    return FlightLog(file, records, torn, int(torn))
-
-
-class _TornLine(Exception):
-    pass
-
-
-def _parse_line(file: Path, n: int, line: str, *, is_last: bool) -> dict[str, Any]:
-    try:
-        record = json.loads(line)
-    except ValueError:
-        if is_last:
-            raise _TornLine from None
-        raise LogFormatError(f"{file}:{n}: not a JSON line; the log is damaged before its "
-                             "last line") from None
-    if not isinstance(record, dict) or "t" not in record or "type" not in record:
-        if n == 1:
-            raise LogFormatError(f"{file}: not a mexgen flight log (the first line has no "
-                                 "'t' and 'type')")
-        raise LogFormatError(f"{file}:{n}: record without 't' and 'type'")
-    return record
-
-
-def _check_header(file: Path, records: list[dict[str, Any]]) -> None:
-    if not records:
-        raise LogFormatError(f"{file}: empty; not a mexgen flight log")
-    head = records[0]
-    if head.get("type") != "mission" or head.get("format") != FORMAT:
-        raise LogFormatError(f"{file}: not a mexgen flight log (expected a first record of type "
-                             f"'mission' with format '{FORMAT}')")
-    version = head.get("format_version")
-    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-        raise LogFormatError(f"{file}: unknown flight log format_version {version!r}")
-    if version > FORMAT_VERSION:
-        raise LogFormatError(f"{file}: flight log format_version {version} is newer than this "
-                             f"mexgen-gcs reads ({FORMAT_VERSION}); upgrade mexgen-gcs to read it")
+    raw = read_jsonl(file, FLIGHT_ADAPTER, "flight log")
+    check_format(file, raw.first_line, "mission", FORMAT, FORMAT_VERSION, "flight log")
+    if not raw.records or not isinstance(raw.records[0], MissionHeader):
+        reason = next((r for r, lines in raw.damage.lines.items() if lines[0] == 1), "invalid")
+        raise LogFormatError(f"{file}: the mission record (the first line) is damaged "
+                             f"({reason}); the log cannot be read without it")
+    if raw.damage and len(raw.records) == 1:
+        raise LogFormatError(f"{file}: nothing usable after the mission record: "
+                             f"{raw.damage.describe()}")
+    return FlightLog(file, raw.records, raw.torn_last_line, raw.damage)

@@ -1,6 +1,6 @@
 """Detection wire format v1: codec for the UDP datagrams a radio receiver sends the GCS.
 
-One UTF-8 JSON object per datagram, at most 1400 bytes (ARCHITECTURE.md, a contract):
+One UTF-8 JSON object per datagram, at most 1400 bytes (docs/wire-format.md, a contract):
 
 - detection: ``{"v": 1, "type": "detection", "t": <unix s>, "tag": "<id>", "freq_hz": <int>,
   "rssi_db": <float>}`` with at least one of ``tag``/``freq_hz``, and optionally the receiver

@@ -7,7 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mexgen_gcs.config import describe, dump_resolved, load_mission, parse_mission
+from mexgen_gcs.config import (
+    describe,
+    dump_resolved,
+    load_mission,
+    mission_warnings,
+    parse_mission,
+)
 from mexgen_gcs.config.sim_schema import SimTag
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
@@ -105,17 +111,17 @@ def test_sim_tags_and_truth_models(demo) -> None:
 
 
 def test_warnings(demo) -> None:
-    assert demo.warnings() == [
+    assert mission_warnings(demo) == [
         "flight.max_accel_m_s2 = 4: PX4's default MPC_ACC_HOR caps horizontal acceleration "
         "at 3 m/s^2; turns will take longer than the planner assumes"]
     fast = parse_mission(DEMO_TEXT.replace("speed_m_s: 10.0", "speed_m_s: 15.0"), "f.yaml")
     assert any("PX4's default MPC_XY_VEL_MAX caps horizontal speed at 12 m/s; the vehicle will "
-               "fly slower than asked" in w for w in fast.warnings())
+               "fly slower than asked" in w for w in mission_warnings(fast))
     near = parse_mission(DEMO_TEXT.replace("south_m: -100", "south_m: 100").replace(
         "[-200.0, 150.0]", "[-200.0, 350.0]"), "n.yaml")
-    assert any("home is 100 m outside the search area" in w for w in near.warnings())
+    assert any("home is 100 m outside the search area" in w for w in mission_warnings(near))
     for name in ("follow_cv.yaml", "localise_cv_ift.yaml", "localise_mismatch.yaml"):
-        assert load_mission(MISSIONS / name).warnings() == [], name
+        assert mission_warnings(load_mission(MISSIONS / name)) == [], name
 
 
 def test_more_warnings() -> None:
@@ -126,7 +132,7 @@ def test_more_warnings() -> None:
             .replace("  alt_m: 50.0 ", "  alt_m: 150.0 ")
             .replace('allowed_sources: ["127.0.0.1/32"]', "allowed_sources: []")
             .replace("freq_hz: 150460000", "freq_hz: 433920000"))
-    warnings = "\n".join(parse_mission(text, "w.yaml").warnings())
+    warnings = "\n".join(mission_warnings(parse_mission(text, "w.yaml")))
     for fragment in ("moves (cv) but filter.motion is static", "faster than filter.speed_max",
                      "tags T4 have no sim.tags entry", "above 120 m",
                      "detections from any address", "433920000 is not a VHF frequency"):

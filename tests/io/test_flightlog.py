@@ -16,6 +16,7 @@ import pytest
 
 from mexgen_gcs.config import dump_resolved, load_mission
 from mexgen_gcs.errors import LogFormatError
+from mexgen_gcs.io import records
 from mexgen_gcs.io.flightlog import (
     FORMAT,
     FORMAT_VERSION,
@@ -36,32 +37,41 @@ def mission():
     return load_mission(DEMO)
 
 
+TELEMETRY = dict(lat=-34.92, lon=138.60, rel_alt_m=np.float32(50.5), v_north_m_s=1.0,
+                 v_east_m_s=0.0, yaw_deg=90.0, mode="OFFBOARD", armed=True, in_air=True,
+                 battery_percent=np.nan, connected=True)
+
+
 def test_round_trip(tmp_path: Path, mission) -> None:
     log_dir = tmp_path / "flight-1"
     clock = iter(float(t) for t in range(100, 200))
     with FlightLogWriter(log_dir, mission, seed=5, method="pim", clock=lambda: next(clock)) as w:
-        w.write("telemetry", lat=-34.92, lon=138.60, alt_m=np.float32(50.5), armed=True)
-        w.write("estimate", tag="T1", mean=np.array([1.0, 2.0, np.nan, np.inf]),
-                cov=np.eye(2), existence=np.float64(0.75), n=np.int64(2000))
-        w.write("event", t=123.5, text="explicit time")
+        w.write("telemetry", **TELEMETRY)
+        w.write("estimate", tag="T1", existence=np.float64(0.75), east_m=1.0, north_m=2.0,
+                v_east_m_s=np.nan, v_north_m_s=np.inf, cov_pos_m2=np.eye(2), radius_m=30.0,
+                localised=False, update="detection", ess=np.int64(2000), extra_field=[1, 2])
+        w.write("event", t=123.5, kind="note", text="explicit time")
     assert (log_dir / LOG_FILE).exists()
     log = read_flight_log(log_dir)
-    assert not log.torn_last_line and log.skipped_lines == 0
+    assert not log.torn_last_line and log.skipped_lines == 0 and not log.damage
     assert [r["type"] for r in log] == ["mission", "telemetry", "estimate", "event"]
-    assert [r["t"] for r in log] == [100.0, 101.0, 102.0, 123.5]
+    assert [r.t for r in log] == [100.0, 101.0, 102.0, 123.5]
     head = log.header
     assert head["format"] == FORMAT and head["format_version"] == FORMAT_VERSION
-    assert head["mission"] == dump_resolved(mission)
-    assert head["mission_path"] == str(DEMO)
-    assert head["mission_text"] == DEMO.read_text(encoding="utf-8")
-    assert head["seed"] == 5 and head["method"] == "pim"
-    assert set(head["versions"]) == {"mexgen_gcs", "numpy", "mavsdk", "pymavlink", "python"}
-    assert head["versions"]["numpy"] == np.__version__
+    assert head.mission == dump_resolved(mission)
+    assert head.mission_path == str(DEMO)
+    assert head.mission_text == DEMO.read_text(encoding="utf-8")
+    assert head.seed == 5 and head.method == "pim"
+    assert set(head.versions) == {"mexgen_gcs", "numpy", "mavsdk", "pymavlink", "python"}
+    assert head.versions["numpy"] == np.__version__
     est = next(log.of_type("estimate"))
-    assert est["mean"] == [1.0, 2.0, None, None]
-    assert est["cov"] == [[1.0, 0.0], [0.0, 1.0]] and est["existence"] == 0.75
-    assert est["n"] == 2000
-    assert next(log.of_type("telemetry"))["alt_m"] == 50.5
+    assert isinstance(est, records.Estimate)
+    assert (est.east_m, est.north_m, est.v_east_m_s, est.v_north_m_s) == (1.0, 2.0, None, None)
+    assert est.cov_pos_m2 == ((1.0, 0.0), (0.0, 1.0)) and est.existence == 0.75
+    assert est.ess == 2000 and est["extra_field"] == [1, 2] and "extra_field" in est
+    tel = next(log.of_type("telemetry"))
+    assert tel["rel_alt_m"] == 50.5 and tel.battery_percent is None
+    assert next(log.of_type("event")).get("text") == "explicit time"
     # one JSON object per line
     lines = (log_dir / LOG_FILE).read_text(encoding="utf-8").splitlines()
     assert len(lines) == 4 and all(json.loads(line)["type"] for line in lines)
@@ -77,12 +87,12 @@ def test_method_defaults_to_the_missions(tmp_path: Path, mission) -> None:
 def test_records_reach_the_file_before_close(tmp_path: Path, mission) -> None:
     """Flushed per record: another reader sees every record while the writer is open."""
     w = FlightLogWriter(tmp_path / "f", mission, fsync=True)
-    w.write("event", text="one")
+    w.write("event", kind="one")
     assert [r["type"] for r in read_flight_log(tmp_path / "f")] == ["mission", "event"]
     w.close()
     assert w.closed
     with pytest.raises(ValueError, match="closed"):
-        w.write("event", text="late")
+        w.write("event", kind="late")
 
 
 def test_refuses_to_overwrite(tmp_path: Path, mission) -> None:
@@ -100,8 +110,8 @@ def test_crash_mid_flight_loses_at_most_the_last_line(tmp_path: Path) -> None:
         from mexgen_gcs.io.flightlog import FlightLogWriter
         w = FlightLogWriter({str(log_dir)!r}, load_mission({str(DEMO)!r}))
         for i in range(50):
-            w.write("telemetry", i=i)
-        w._file.write('{{"t": 1.0, "type": "telemetry", "i": 5')  # half a record
+            w.write("event", kind="tick", i=i)
+        w._file.write('{{"t": 1.0, "type": "event", "kind": "tick", "i": 5')  # half a record
         w._file.flush()
         os._exit(9)
     """)
@@ -109,12 +119,12 @@ def test_crash_mid_flight_loses_at_most_the_last_line(tmp_path: Path) -> None:
     assert proc.returncode == 9, proc.stderr.decode()
     log = read_flight_log(log_dir)
     assert log.torn_last_line and log.skipped_lines == 1
-    assert [r.get("i") for r in log.of_type("telemetry")] == list(range(50))
+    assert [r.get("i") for r in log.of_type("event")] == list(range(50))
 
 
 def test_torn_last_line_variants(tmp_path: Path, mission) -> None:
     with FlightLogWriter(tmp_path / "f", mission) as w:
-        w.write("event", text="complete")
+        w.write("event", kind="complete")
     path = tmp_path / "f" / LOG_FILE
     good = path.read_bytes()
     # a complete last record without its newline still counts
@@ -122,17 +132,45 @@ def test_torn_last_line_variants(tmp_path: Path, mission) -> None:
     log = read_flight_log(path)
     assert len(log) == 2 and not log.torn_last_line
     # a multi-byte character cut in half
-    path.write_bytes(good + '{"t": 2, "type": "event", "text": "é'.encode()[:-1])
+    path.write_bytes(good + '{"t": 2, "type": "event", "kind": "é'.encode()[:-1])
     log = read_flight_log(path)
     assert len(log) == 2 and log.torn_last_line
 
 
-def test_damage_before_the_last_line_is_an_error(tmp_path: Path, mission) -> None:
+def test_damage_before_the_last_line_is_skipped_and_counted(tmp_path: Path, mission) -> None:
     with FlightLogWriter(tmp_path / "f", mission) as w:
-        w.write("event", text="one")
+        w.write("event", kind="one")
     path = tmp_path / "f" / LOG_FILE
-    path.write_bytes(path.read_bytes() + b"{broken\n" + b'{"t": 3, "type": "event"}\n')
-    with pytest.raises(LogFormatError, match=r"flight\.jsonl:3: not a JSON line"):
+    path.write_bytes(path.read_bytes() + b"{broken\n" + b'{"t": 3, "type": "event"}\n'
+                     + b'{"t": 4, "type": "event", "kind": "two"}\n')
+    log = read_flight_log(path)
+    assert [r.get("kind") for r in log.of_type("event")] == ["one", "two"]
+    assert log.damage.lines == {"not JSON": [3], "invalid event record": [4]}
+    assert log.skipped_lines == 2 and not log.torn_last_line
+    assert log.damage.describe() == ("2 damaged records skipped: 1 not JSON (line 3); "
+                                      "1 invalid event record (line 4)")
+
+
+def test_nothing_but_damage_after_the_header_is_refused(tmp_path: Path, mission) -> None:
+    FlightLogWriter(tmp_path / "f", mission).close()
+    path = tmp_path / "f" / LOG_FILE
+    path.write_bytes(path.read_bytes() + b"\x00\xff garbage\n" * 3 + b'{"t": NaN}\n')
+    with pytest.raises(LogFormatError, match=r"nothing usable after the mission record: 4 "
+                       r"damaged records skipped: 3 not UTF-8 \(lines 2, 3, 4\); 1 not a "
+                       r"record"):
+        read_flight_log(path)
+
+
+def test_a_damaged_header_is_refused(tmp_path: Path, mission) -> None:
+    with FlightLogWriter(tmp_path / "f", mission) as w:
+        w.write("event", kind="one")
+    path = tmp_path / "f" / LOG_FILE
+    head, rest = path.read_bytes().split(b"\n", 1)
+    record = json.loads(head)
+    del record["mission"]
+    path.write_bytes(json.dumps(record).encode() + b"\n" + rest)
+    with pytest.raises(LogFormatError, match=r"the mission record \(the first line\) is "
+                       r"damaged \(invalid mission record\)"):
         read_flight_log(path)
 
 

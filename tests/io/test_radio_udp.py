@@ -26,8 +26,7 @@ LOCAL = (ipaddress.ip_network("127.0.0.1/32"),)
 
 
 def fixture_rows(name: str) -> list[dict[str, Any]]:
-    shared = (REPO / ".." / "shared" / "fixtures" / "wire-v1").resolve()
-    folder = shared if (shared / name).exists() else REPO / "tests" / "fixtures" / "wire-v1"
+    folder = REPO / "tests" / "fixtures" / "wire-v1"  # the contract fixtures, in the repository
     rows = []
     for line in (folder / name).read_text(encoding="utf-8").splitlines():
         if line.strip():

@@ -1,4 +1,5 @@
-"""Wire format v1 codec: the shared contract fixtures, round trips, and fuzzing."""
+"""Wire format v1 codec: the contract fixtures (tests/fixtures/wire-v1, documented in
+docs/wire-format.md), the JSON Schema, round trips, and fuzzing."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import jsonschema
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -27,15 +29,13 @@ from mexgen_gcs.io.wire import (
 REPO = Path(__file__).resolve().parents[2]
 
 
-def fixture_dir() -> Path:
-    """The shared contract fixtures beside the repository, else the vendored copy."""
-    shared = (REPO / ".." / "shared" / "fixtures" / "wire-v1").resolve()
-    return shared if (shared / "valid.jsonl").exists() else REPO / "tests" / "fixtures" / "wire-v1"
+FIXTURES = REPO / "tests" / "fixtures" / "wire-v1"
+SCHEMA = json.loads((REPO / "docs" / "schemas" / "wire-v1.schema.json").read_text())
 
 
 def load_fixtures(name: str) -> list[dict[str, Any]]:
     rows = []
-    for line in (fixture_dir() / name).read_text(encoding="utf-8").splitlines():
+    for line in (FIXTURES / name).read_text(encoding="utf-8").splitlines():
         if line.strip():
             row = json.loads(line)
             row["bytes"] = (bytes.fromhex(row["payload_hex"]) if "payload_hex" in row
@@ -48,13 +48,47 @@ VALID = load_fixtures("valid.jsonl")
 INVALID = load_fixtures("invalid.jsonl")
 
 
-def test_vendored_fixtures_match_shared() -> None:
-    vendored = REPO / "tests" / "fixtures" / "wire-v1"
-    shared = (REPO / ".." / "shared" / "fixtures" / "wire-v1").resolve()
-    if not shared.exists():
-        pytest.skip("no shared fixtures beside the repository")
-    for name in ("valid.jsonl", "invalid.jsonl"):
-        assert (vendored / name).read_bytes() == (shared / name).read_bytes(), name
+def test_valid_fixtures_follow_the_json_schema() -> None:
+    for row in VALID:
+        jsonschema.validate(json.loads(row["payload"]), SCHEMA)
+
+
+# what a JSON Schema of one object cannot say: bytes, size, duplicate keys, JSON syntax (NaN
+# and Infinity are not JSON, though Python's parser reads them)
+_NOT_IN_SCHEMA = {"not_utf8", "oversized", "duplicate_key", "bad_json", "empty"}
+
+
+def test_invalid_fixtures_break_the_json_schema() -> None:
+    checked = 0
+    for row in INVALID:
+        if row["reason"] in _NOT_IN_SCHEMA or row["reason"].endswith(("_nan", "_infinity")):
+            continue
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate(json.loads(row["payload"]), SCHEMA)
+        checked += 1
+    assert checked >= 10
+
+
+@pytest.mark.parametrize(("obj", "valid"), [
+    ({"v": 1, "type": "detection", "t": 1.0, "freq_hz": 150_100_000, "rssi_db": -50.0}, True),
+    ({"v": 1, "type": "detection", "t": 1.0, "tag": "T1", "rssi_db": -50.0, "lat": 1.0}, False),
+    ({"v": 1, "type": "detection", "t": 1.0, "tag": "T 1", "rssi_db": -50.0}, False),
+    ({"v": 1, "type": "detection", "t": 1.0, "tag": "T1", "rssi_db": -50.0, "extra": 1}, True),
+    ({"v": 1, "type": "heartbeat", "t": 1.0, "listening": ["T1", ""]}, False),
+    ({"v": 1, "type": "heartbeat", "t": -1.0}, False),
+    ({"v": 1, "type": "detection", "t": 1.0, "tag": "T1", "rssi_db": -50.0, "yaw_deg": 400},
+     False),
+])
+def test_schema_and_codec_agree(obj: dict[str, Any], valid: bool) -> None:
+    payload = json.dumps(obj).encode()
+    if valid:
+        jsonschema.validate(obj, SCHEMA)
+        decode(payload)
+    else:
+        with pytest.raises(jsonschema.ValidationError):
+            jsonschema.validate(obj, SCHEMA)
+        with pytest.raises(WireError):
+            decode(payload)
 
 
 @pytest.mark.parametrize("row", VALID, ids=lambda r: r["payload"][:60])

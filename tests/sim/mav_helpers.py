@@ -33,8 +33,16 @@ def wait_for(conn: Any, kind: str, predicate: Any = None, timeout_s: float = 10.
     raise AssertionError(f"no {kind} within {timeout_s} s")
 
 
+def drain(conn: Any) -> None:
+    """Read and drop what is waiting: a socket left unread fills up and drops new datagrams."""
+    while conn.recv_match(blocking=False) is not None:
+        pass
+
+
 def command(conn: Any, cmd: int, *params: float, sysid: int = 1) -> int:
-    """Send a COMMAND_LONG and return its COMMAND_ACK result."""
+    """Send a COMMAND_LONG and return its COMMAND_ACK result (after draining the backlog,
+    which cannot hold the answer yet and would make the kernel drop it)."""
+    drain(conn)
     p = list(params) + [0.0] * (7 - len(params))
     conn.mav.command_long_send(sysid, 1, cmd, 0, *p)
     return int(wait_for(conn, "COMMAND_ACK", lambda m: m.command == cmd).result)

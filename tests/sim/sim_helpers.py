@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -100,9 +101,22 @@ def start_sim(mission: Path, truth_dir: Path, *, mavlink_port: int, radio_port: 
            "--mavlink", f"127.0.0.1:{mavlink_port}", "--radio", f"127.0.0.1:{radio_port}",
            "--listen", "127.0.0.1:0", "--truth-dir", str(truth_dir), "--sysid", str(sysid),
            *(extra or [])]
+    return _launch(cmd, lambda proc: SimProcess(proc, mavlink_port, radio_port, truth_dir, sysid))
+
+
+def start_radios_only(mission: Path, truth_dir: Path, *, vehicle: str, radio_port: int,
+                      extra: list[str] | None = None) -> SimProcess:
+    """``python -m sim MISSION --radios-only --vehicle URL``; ``listen_port`` = its socket."""
+    cmd = [sys.executable, "-m", "sim", str(mission), "--radios-only", "--vehicle", vehicle,
+           "--radio", f"127.0.0.1:{radio_port}", "--truth-dir", str(truth_dir),
+           *(extra or [])]
+    return _launch(cmd, lambda proc: SimProcess(proc, 0, radio_port, truth_dir, 0))
+
+
+def _launch(cmd: list[str], make: Callable[[subprocess.Popen[str]], SimProcess]) -> SimProcess:
     proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=os.environ | {"PYTHONUNBUFFERED": "1"})
-    sim = SimProcess(proc, mavlink_port, radio_port, truth_dir, sysid)
+    sim = make(proc)
     out: queue.Queue[str] = queue.Queue()
     err: queue.Queue[str] = queue.Queue()
     threading.Thread(target=_pump, args=(proc.stdout, out, None), daemon=True).start()
@@ -118,7 +132,7 @@ def start_sim(mission: Path, truth_dir: Path, *, mavlink_port: int, radio_port: 
             continue
         if line.startswith("sim ready"):
             sim.ready_line = line.strip()
-            fields = dict(p.split("=", 1) for p in sim.ready_line.split()[2:])
+            fields = dict(p.split("=", 1) for p in sim.ready_line.split() if "=" in p)
             sim.listen_port = int(fields["listen"].rsplit(":", 1)[1])
             return sim
     with contextlib.suppress(Exception):

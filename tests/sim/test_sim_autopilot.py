@@ -98,9 +98,27 @@ def test_offboard_needs_setpoints_and_falls_back_to_hold() -> None:
     f.run(0.9)  # COM_OF_LOSS_T = 1 s: still offboard
     assert f.ap.mode == modes.OFFBOARD
     f.run(0.3)
-    assert f.ap.mode == modes.HOLD and "failsafe" in f.kinds()
-    f.run(5.0)
-    assert f.ap.state.ground_speed_m_s < 0.05
+    # PX4: COM_OBL_RC_ACT 0 (position mode) needs RC; without it NAV_RCL_ACT 2: return.
+    assert f.ap.mode == modes.RTL and "failsafe" in f.kinds() and f.ap.failsafe
+
+
+@pytest.mark.parametrize(("obl", "rcl", "rc", "expected"), [
+    (5, 2, False, modes.HOLD), (4, 2, False, modes.LAND), (0, 1, False, modes.HOLD),
+    (0, 3, False, modes.LAND), (0, 2, True, modes.POSCTL), (1, 2, True, modes.ALTCTL),
+])
+def test_offboard_loss_action(obl: int, rcl: int, rc: bool, expected: modes.PX4Mode) -> None:
+    f = Flight(COM_OBL_RC_ACT=obl, NAV_RCL_ACT=rcl)
+    f.airborne()
+    f.ap.rc_available = rc
+    sp = Setpoint(velocity_enu_m_s=(5.0, 0.0, 0.0))
+    f.ap.offboard_setpoint(sp, f.wall_s)
+    assert f.ap.set_mode(modes.OFFBOARD, f.wall_s) is Result.ACCEPTED
+    f.run(3.0, sp)
+    f.run(1.5)
+    assert f.ap.mode == expected
+    if expected == modes.HOLD:
+        f.run(5.0)
+        assert f.ap.state.ground_speed_m_s < 0.05
 
 
 def test_speed_is_capped_by_mpc_xy_vel_max() -> None:

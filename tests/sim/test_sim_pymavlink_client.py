@@ -68,8 +68,14 @@ def test_arming_refused_without_gps(sim_factory: SimFactory, client: Any) -> Non
     sys_status = wait_for(client, "SYS_STATUS")
     assert not sys_status.onboard_control_sensors_health & M.MAV_SYS_STATUS_SENSOR_GPS
     assert command(client, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
-    text = wait_for(client, "STATUSTEXT", lambda m: "GPS" in m.text)
-    assert "denied" in text.text
+    # PX4's wording: the failing check, then the refusal (its tab marks a MAVLink event).
+    assert wait_for(client, "STATUSTEXT", lambda m: "GPS" in m.text).text \
+        == "Preflight Fail: GPS fix too low"
+    # 52 characters: two chunks of one text, as PX4 sends them.
+    first, second = wait_for(client, "STATUSTEXT"), wait_for(client, "STATUSTEXT")
+    assert (first.text, second.text) == ("Arming denied: Resolve system health failures firs",
+                                         "t\t")
+    assert (first.id, first.chunk_seq, second.chunk_seq) == (second.id, 0, 1)
     # Force-arming (PX4's magic number) bypasses the check, as on PX4.
     assert command(client, M.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196) == M.MAV_RESULT_ACCEPTED
 

@@ -121,11 +121,11 @@ def test_offboard_velocity_body_and_global_setpoints() -> None:
             1.0, 0, 0, 0, 0))
 
     h.received()
-    h.run(2.0, accel_only)  # not flown: offboard is lost and the vehicle holds
-    assert h.ap.mode == modes.HOLD
+    h.run(2.0, accel_only)  # not flown: offboard is lost, the failsafe returns (as PX4 SITL)
+    assert h.ap.mode == modes.RTL
     texts = [m.text for m in h.received("STATUSTEXT")]
     assert any("only position/velocity" in t for t in texts)
-    assert any("offboard setpoints lost" in t for t in texts)
+    assert "Failsafe activated\t" in texts  # PX4's words for the offboard-loss failsafe
 
 
 def test_command_int_reposition_speed_and_home() -> None:
