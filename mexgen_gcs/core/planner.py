@@ -31,7 +31,8 @@ exact expected information (MC-M with M large) then prefers flying sideways or a
 vehicle never closes in (issue 12). With ``reach`` the look-ahead is stretched, keeping its
 number of steps (so the cost), to the time needed to fly to the nearest planned belief's mean
 (``max_lookahead_s`` at most); within ``speed * lookahead_s`` of it nothing changes. The
-pruning horizon stays ``prune_horizon_s`` (default: the configured look-ahead).
+pruning horizon stays ``prune_horizon_s`` (default: the configured look-ahead); beyond it a
+stretched path that reaches the area's boundary is held there, as the vehicle would be.
 
 Everything is vectorised over tags x actions x rollouts x particles as float32 arrays (T, A, R,
 N) in :mod:`core.rollout`; the only Python loops are over look-ahead steps and, for the
@@ -51,7 +52,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, Literal, Protocol
@@ -289,8 +290,9 @@ class Planner:
         lookahead_s = reach_lookahead_s(cfg, beliefs, xyz) if cfg.reach else cfg.lookahead_s
         if lookahead_s > cfg.steps * cfg.step_s + 1e-9:
             step_s = lookahead_s / cfg.steps
-            paths = vehicle_paths(xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2,
-                                  step_s * np.arange(1.0, cfg.steps + 1.0))
+            paths = _held_inside(self._inside, xyz, vehicle_paths(
+                xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2,
+                step_s * np.arange(1.0, cfg.steps + 1.0)))
         timing = dict.fromkeys(STAGES, 0.0)
         rewards = np.full(headings.shape, -np.inf)
         all_pruned = bool(pruned.all())
@@ -354,6 +356,19 @@ def reach_lookahead_s(
     dist = min(float(np.linalg.norm(np.asarray(b.states)[:, :2].mean(axis=0) - xy))
                for b in beliefs)
     return min(max(config.lookahead_s, dist / config.speed_m_s), config.max_lookahead_s)
+
+
+def _held_inside(
+    inside: Callable[[FloatArray], BoolArray], xyz: FloatArray, paths: FloatArray
+) -> FloatArray:
+    """Stretched paths (H, A, 2) held at their last point inside the area from the first one
+    outside on (the vehicle is kept in the area; it does not fly on beyond the boundary). An
+    action whose first point is already outside holds the vehicle's position. O(H A)."""
+    ext = np.concatenate([np.broadcast_to(xyz[:2], (1, *paths.shape[1:])), paths])
+    kept = np.logical_and.accumulate(np.concatenate(
+        [np.ones((1, paths.shape[1]), dtype=bool), inside(paths)]), axis=0)
+    last = np.cumsum(kept, axis=0)[1:] - 1  # index into ext of the last kept point, (H, A)
+    return np.take_along_axis(ext, last[..., None], axis=0)
 
 
 def _check_beliefs(beliefs: Sequence[PlanningBelief]) -> None:

@@ -77,3 +77,8 @@ def test_pruning_keeps_the_configured_horizon_when_the_look_ahead_is_stretched()
     np.testing.assert_array_equal(result.pruned, [True, True, False, False, False, False,
                                                   False, True])
     assert result.heading_deg == 180.0
+    # beyond the pruning horizon a stretched path is held at the boundary, not flown past it
+    assert area.contains(result.paths_m[~result.pruned].reshape(-1, 2)).all()
+    east = result.paths_m[2]
+    assert east[-1, 0] < 2000.0 and east[-1, 0] > 2000.0 - 1.5 * 15.0 * result.lookahead_s / 20
+    assert np.array_equal(east[-1], east[-2])  # held
