@@ -221,8 +221,8 @@ def rollout_gains(
         # 3. update: log_w_next <- the log-likelihood of the generated outcome
         p_det = meas.p_detect
         q: Float32Array | None = None  # weight of the missed branch ("branches")
-        if p_det.min(initial=1.0) >= 1.0 or not _uncertain(p_det):
-            # every pulse detected, or MC's sampled outcomes (0 or 1): one branch
+        if not _uncertain(p_det):
+            # every pulse detected (p = 1), or MC's sampled outcomes (0 or 1): one branch
             log_likelihood(meas.z_db, p_det > 0.0, power[j], log_pd[j], table,
                            radio.noise_var, out=log_w_next,
                            coef=None if coef is None else coef[j])
