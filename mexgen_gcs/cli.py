@@ -137,6 +137,10 @@ def _add_flight_options(p: argparse.ArgumentParser) -> None:
                    help="seed of the GCS's random draws (and of the simulated world for sitl)")
     p.add_argument("--log-dir", default="flights", metavar="D",
                    help="flight logs go to a new directory under D (default: flights)")
+    p.add_argument("--time-scale", type=_positive_float, default=None, metavar="K",
+                   help="the vehicle's clock runs K times the wall clock (default: measured "
+                        "from the vehicle's SYSTEM_TIME; PX4 SITL at speed factor K runs "
+                        "about 0.96 K)")
 
 
 def _positive_float(text: str) -> float:

@@ -23,8 +23,10 @@ BoolArray = NDArray[np.bool_]
 STAGES = ("predict", "measure", "update", "reward", "total")
 """Planner timing keys in a plan record's ``timing_ms``."""
 
-_MAX_PULSE_SKEW_S = 5.0
-"""A detection's pose is timed by its pulse time unless that is this far from its arrival."""
+_MAX_PULSE_SKEW_S = 60.0
+"""A detection's pose is timed by its pulse time unless that is this far from its arrival
+(more than the receiver's clock-skew limit allows; at a high time scale a busy GCS takes
+seconds of vehicle time to process a datagram)."""
 
 
 def num(value: Any) -> float:
@@ -139,7 +141,10 @@ class Detections:
         return self.tag == tag_id
 
     def pose_times(self) -> FloatArray:
-        """When each detection's pose was taken: the pulse time unless it is skewed."""
+        """When each detection's pose was taken: its pulse time (the GCS poses every detection
+        at its own pulse time, from the datagram's pose or its pose history, both on the
+        vehicle's clock); the arrival only where the pulse time is missing or absurdly far
+        (a log of a GCS that posed detections at arrival)."""
         tp = self.t_pulse
         ok = np.isfinite(tp) & (np.abs(tp - self.t) <= _MAX_PULSE_SKEW_S)
         return np.where(ok, tp, self.t)

@@ -35,8 +35,9 @@ def describe(mission: Mission) -> str:
     frame = m.local_frame()
     lines = [f"Mission {m.name!r} ({m.source_path or 'not from a file'}): {m.kind}, "
              f"{len(m.tags)} tag{'s' if len(m.tags) != 1 else ''}"]
-    lines.append(f"  home       {m.home.lat_deg:.6f}, {m.home.lon_deg:.6f}, ground "
-                 f"{m.home.alt_m:g} m AMSL")
+    ground = (f"ground {m.home.alt_m:g} m AMSL (compared with the vehicle's home)"
+              if m.home.alt_m is not None else "heights above the vehicle's own home")
+    lines.append(f"  home       {m.home.lat_deg:.6f}, {m.home.lon_deg:.6f}, {ground}")
     size = f"{e - w:.0f} m east-west x {n - s:.0f} m north-south"
     km2 = SearchArea.area_m2(area.vertices_m) / 1e6
     if m.area.rectangle_m is not None:
@@ -84,11 +85,14 @@ def describe(mission: Mission) -> str:
     if m.kind == "follow" and m.follow is not None:
         lines.append(f"  follow     {m.follow.tag} for {m.follow.duration_s:g} s")
     sf = m.safety
+    uploaded = "uploaded" if sf.upload_geofence else "not uploaded"
     lines.append(f"  safety     home after {sf.max_mission_time_s:g} s or at "
                  f"{sf.battery_rtl_percent:g}% battery; link lost after "
                  f"{sf.link_loss_timeout_s:g} s then {sf.on_link_regained}; radio silent "
                  f"{sf.radio_loss_timeout_s:g} s -> home; geofence {sf.geofence_margin_m:g} m "
-                 f"outside the area ({'uploaded' if sf.upload_geofence else 'not uploaded'})")
+                 f"outside the area and home ({uploaded}); vehicle home within "
+                 f"{sf.home_max_distance_m:g} m of the area (warn beyond "
+                 f"{sf.home_mismatch_warn_m:g} m from this home)")
     lines += _describe_sim(m)
     return "\n".join(lines)
 

@@ -208,8 +208,10 @@ class Mission(Section):
         return None if best is None else best[1]
 
     def local_frame(self) -> LocalFrame:
-        """The ENU frame anchored at home (ground altitude AMSL at home)."""
-        return LocalFrame(self.home.lat_deg, self.home.lon_deg, self.home.alt_m)
+        """The ENU frame anchored at home (at home.alt_m AMSL, 0 when not given). The mission
+        uses it horizontally; heights come from the vehicle's home."""
+        alt = self.home.alt_m if self.home.alt_m is not None else 0.0
+        return LocalFrame(self.home.lat_deg, self.home.lon_deg, alt)
 
     def search_area(self) -> SearchArea:
         """The search area in ENU metres about home."""
@@ -218,7 +220,7 @@ class Mission(Section):
             return SearchArea.rectangle(r.west_m, r.east_m, r.south_m, r.north_m)
         assert self.area.polygon_deg is not None  # guaranteed by Area's validator
         lat_lon = np.asarray(self.area.polygon_deg, dtype=np.float64)
-        east, north, _ = self.local_frame().to_enu(lat_lon[:, 0], lat_lon[:, 1], self.home.alt_m)
+        east, north, _ = self.local_frame().to_enu(lat_lon[:, 0], lat_lon[:, 1])
         return SearchArea(np.column_stack([east, north]))
 
     def radio_model(self) -> RadioModel:

@@ -60,9 +60,11 @@ class Home(Section):
 
     lat_deg: Float = Field(ge=-90.0, le=90.0, description="Latitude of home, degrees WGS84.")
     lon_deg: Float = Field(ge=-180.0, le=180.0, description="Longitude of home, degrees WGS84.")
-    alt_m: Float = Field(
-        0.0, ge=-500.0, le=9000.0,
-        description="Ground altitude at home, metres AMSL; flight.alt_m is above this.",
+    alt_m: Float | None = Field(
+        None, ge=-500.0, le=9000.0,
+        description="Ground altitude at home, metres AMSL, optional: heights come from the "
+        "vehicle's own home (HOME_POSITION); when given it is compared with the vehicle's "
+        "home before arming (warning beyond safety.home_alt_mismatch_warn_m).",
     )
 
 
@@ -334,5 +336,16 @@ class Safety(Section):
     upload_geofence: Bool = Field(True, description="Upload the geofence to the vehicle.")
     home_max_distance_m: Float = Field(
         500.0, ge=0.0, le=100_000.0,
-        description="Home must be inside the area or at most this far outside, metres.",
+        description="Home (the mission's and the vehicle's) must be inside the area or at most "
+        "this far outside, metres; else the mission refuses to arm.",
+    )
+    home_mismatch_warn_m: Float = Field(
+        20.0, ge=0.0, le=100_000.0,
+        description="Warn before arming when the vehicle's home is further than this from the "
+        "mission's home (horizontal), metres.",
+    )
+    home_alt_mismatch_warn_m: Float = Field(
+        15.0, ge=0.0, le=10_000.0,
+        description="Warn before arming when home.alt_m (if given) differs from the vehicle's "
+        "home altitude by more than this, metres.",
     )

@@ -1,11 +1,13 @@
 """The search area: a simple polygon in the local ENU frame (metres about home).
 
 Rectangles are polygons with four vertices. Containment is vectorised over points with a
-loop over the (few) edges only.
+loop over the (few) edges only. ``fence_polygon`` gives the geofence to upload: the convex
+hull of the area (plus any extra points, e.g. home) pushed outward by a margin.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +81,49 @@ class SearchArea:
         d = np.sqrt(((p[..., None, :] - closest) ** 2).sum(-1)).min(axis=-1)
         return np.where(self.contains(p), 0.0, d)
 
+    def fence_polygon(self, margin_m: float, extra_points_m: FloatArray | None = None
+                      ) -> FloatArray:
+        """A convex polygon (K, 2), counter-clockwise, that contains every point within
+        ``margin_m`` of the area (and of ``extra_points_m``, (P, 2), e.g. home).
+
+        It is the convex hull offset outward by ``margin_m`` with mitred corners: each hull
+        edge moves out by the margin and neighbouring edges meet where their offset lines
+        cross, so the polygon contains the hull dilated by a disk of radius ``margin_m``. A
+        corner sharper than 90 degrees would mitre far out; it is cut by the line tangent
+        to that disk (two vertices), which still contains the dilation. Convex, so it also
+        contains every straight path between two of its points (e.g. a return to home).
+        """
+        if not (np.isfinite(margin_m) and margin_m >= 0.0):
+            raise ValueError("the fence margin must be a finite number >= 0")
+        pts = self.vertices_m
+        if extra_points_m is not None:
+            extra = np.asarray(extra_points_m, dtype=np.float64).reshape(-1, 2)
+            pts = np.vstack([pts, extra[np.all(np.isfinite(extra), axis=1)]])
+        hull = convex_hull(pts)
+        if margin_m == 0.0:
+            return hull
+        edge = np.roll(hull, -1, axis=0) - hull  # edge i: hull[i] -> hull[i + 1]
+        unit = edge / np.linalg.norm(edge, axis=1, keepdims=True)
+        normal = np.column_stack([unit[:, 1], -unit[:, 0]])  # outward for a CCW hull
+        out: list[FloatArray] = []
+        k = len(hull)
+        for i in range(k):  # corner at hull[i] between edge i-1 and edge i
+            n_in, n_out = normal[i - 1], normal[i]
+            bisector = n_in + n_out
+            cos_half = float(np.linalg.norm(bisector)) / 2.0  # cos of half the turn angle
+            if cos_half >= math.sqrt(0.5) - 1e-12:  # turn <= 90 deg: the mitre is short
+                out.append(hull[i] + margin_m * bisector / (2.0 * cos_half ** 2))
+            else:  # cut the corner on the disk's tangent perpendicular to the bisector
+                b = bisector / np.linalg.norm(bisector) if cos_half > 1e-9 else n_in
+                tangent_point = hull[i] + margin_m * b
+                along = np.array([-b[1], b[0]])
+                # where the tangent meets the two offset edge lines
+                for n_edge in (n_in, n_out):
+                    denom = float(np.dot(along, n_edge))
+                    s = (margin_m - float(np.dot(tangent_point - hull[i], n_edge))) / denom
+                    out.append(tangent_point + s * along)
+        return np.asarray(out)
+
     def sample_uniform(self, n: int, rng: np.random.Generator) -> FloatArray:
         """n points uniform in the polygon, (n, 2), by rejection from the bounding box."""
         w, e, s, nn = self.bounds
@@ -92,3 +137,28 @@ class SearchArea:
             out[filled : filled + len(pts)] = pts
             filled += len(pts)
         return out
+
+
+def convex_hull(points_m: FloatArray) -> FloatArray:
+    """Convex hull (K, 2) of (N, 2) points, counter-clockwise, no collinear vertices
+    (Andrew's monotone chain, O(N log N)). Needs three points not on one line."""
+    p = np.unique(np.asarray(points_m, dtype=np.float64).reshape(-1, 2), axis=0)  # sorted
+    if len(p) < 3:
+        raise ValueError("a convex hull needs at least 3 distinct points")
+
+    def cross(o: FloatArray, a: FloatArray, b: FloatArray) -> float:
+        return float((a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]))
+
+    def chain(seq: FloatArray) -> list[FloatArray]:
+        out: list[FloatArray] = []
+        for q in seq:
+            while len(out) >= 2 and cross(out[-2], out[-1], q) <= 0.0:
+                out.pop()
+            out.append(q)
+        return out
+
+    lower, upper = chain(p), chain(p[::-1])
+    hull = np.asarray(lower[:-1] + upper[:-1])
+    if len(hull) < 3:
+        raise ValueError("a convex hull needs points that are not all on one line")
+    return hull

@@ -69,9 +69,17 @@ class PlanRequest:
 
 @dataclass
 class _Buffered:
-    z_db: list[float] = field(default_factory=list)
-    rx_xyz: FloatArray | None = None
-    rx_yaw_rad: float = 0.0
+    """One pulse period's detections of a tag, grouped by receiver pose: one group per
+    distinct pose (a pulse), each updating the filter at its own pose."""
+
+    groups: list[tuple[FloatArray, float, list[float]]] = field(default_factory=list)
+
+    def add(self, z_db: float, rx_xyz: FloatArray, rx_yaw_rad: float) -> None:
+        for xyz, yaw, zs in self.groups:
+            if yaw == rx_yaw_rad and np.array_equal(xyz, rx_xyz):
+                zs.append(z_db)
+                return
+        self.groups.append((np.array(rx_xyz, dtype=np.float64), rx_yaw_rad, [z_db]))
 
 
 class MissionCore:
@@ -131,16 +139,14 @@ class MissionCore:
     def add_detection(
         self, tag_id: str, rssi_db: float, rx_xyz: FloatArray, rx_yaw_rad: float
     ) -> None:
-        """Buffer one detection for the current pulse period (receiver pose at the pulse)."""
+        """Buffer one detection for the current pulse period at the receiver pose of its own
+        pulse; detections at one pose (one pulse) update together, each pose separately."""
         if tag_id not in self._buffer:
             raise KeyError(f"unknown tag {tag_id!r}")
         if not (math.isfinite(rssi_db) and np.all(np.isfinite(rx_xyz))):
             raise ValueError("detection needs a finite rssi and receiver position")
-        buf = self._buffer[tag_id]
-        if buf.rx_xyz is None:
-            buf.rx_xyz = np.asarray(rx_xyz, dtype=np.float64)
-            buf.rx_yaw_rad = float(rx_yaw_rad)
-        buf.z_db.append(float(rssi_db))
+        self._buffer[tag_id].add(float(rssi_db), np.asarray(rx_xyz, dtype=np.float64),
+                                 float(rx_yaw_rad))
         self.detections[tag_id] += 1
         self.last_rssi_db[tag_id] = float(rssi_db)
 
@@ -168,9 +174,9 @@ class MissionCore:
         for tid, f in self.filters.items():
             f.predict(dt)
             buf = self._buffer[tid]
-            if buf.z_db:
-                assert buf.rx_xyz is not None
-                f.update(np.asarray(buf.z_db), buf.rx_xyz, buf.rx_yaw_rad)
+            if buf.groups:
+                for xyz, yaw, zs in buf.groups:
+                    f.update(np.asarray(zs), xyz, yaw)
                 updated[tid] = "detection"
             elif listening is not None and tid in heard:
                 f.update(np.empty(0), np.asarray(rx_xyz, dtype=np.float64), rx_yaw_rad)

@@ -145,8 +145,12 @@ def run_one(spec: RunSpec) -> RunResult:
     for k in range(1, steps + 1):
         t = k * sc.pulse_period_s
         for _ in range(n_sub):
+            # the guard predicts the point mass exactly: its velocity, its acceleration limit
+            # for speeding up and braking, no latency, the next command after dt_sub
             sp = velocity_setpoint(heading_deg, sc.speed_m_s, (vehicle.east_m, vehicle.north_m),
-                                   vehicle.alt_m, sc.alt_m, area, vehicle.yaw_deg, 0.0)
+                                   vehicle.alt_m, sc.alt_m, area, vehicle.yaw_deg,
+                                   (vehicle.v_east_m_s, vehicle.v_north_m_s),
+                                   brake_m_s2=sc.max_accel_m_s2, latency_s=0.0, period_s=dt_sub)
             vehicle.step(sp.v_east_m_s, sp.v_north_m_s, sp.yaw_deg, dt_sub)
         tag_xy = truth.states[k, :, :2]
         rx_xyz, yaw_rad = vehicle.xyz_m, vehicle.yaw_rad

@@ -15,6 +15,7 @@ NaN and infinities become null, tuples become lists, dataclasses and pydantic mo
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import enum
 import importlib.metadata
@@ -90,18 +91,25 @@ def software_versions() -> dict[str, str | None]:
 
 
 class JsonlWriter:
-    """Append-only JSON-lines file: `write(type, **fields)` adds `t` and `type`, flushes each
-    record, and fsyncs it too if `fsync=True`. Creates the parent directory; refuses to
-    overwrite an existing file."""
+    """Append-only JSON-lines file: `write(type, **fields)` adds `t` and `type`, writes each
+    record straight to the file (no user-space buffer), and fsyncs it too if `fsync=True`.
+    Creates the parent directory; refuses to overwrite an existing file.
+
+    A write that fails with OSError (disk full, I/O error) is undone: the file is cut back to
+    its last complete record, `lost_records` counts it and the OSError is raised, so the file
+    never holds a torn line in its middle and the caller decides whether to go on.
+    """
 
     def __init__(self, path: str | os.PathLike[str], *, fsync: bool = False,
                  clock: Callable[[], float] = time.time) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file: IO[str] | None = open(self.path, "x", encoding="utf-8")  # noqa: SIM115
+        self._file: IO[bytes] | None = open(self.path, "xb", buffering=0)  # noqa: SIM115
         self._fsync = fsync
         self._clock = clock
+        self._size = 0
         self.records = 0
+        self.lost_records = 0
 
     def write(self, type: str, **fields: Any) -> dict[str, Any]:
         """Append one record; `t` defaults to the clock. Returns the record as written."""
@@ -110,13 +118,31 @@ class JsonlWriter:
         t = fields.pop("t", None)
         record = {"t": self._clock() if t is None else t, "type": type, **fields}
         safe = to_jsonable(record)
-        line = json.dumps(safe, separators=(",", ":"), allow_nan=False) + "\n"
-        self._file.write(line)
-        self._file.flush()
-        if self._fsync:
-            os.fsync(self._file.fileno())
+        data = (json.dumps(safe, separators=(",", ":"), allow_nan=False) + "\n").encode("utf-8")
+        try:
+            view = memoryview(data)
+            while view:
+                n = self._file.write(view)
+                if not n:
+                    raise OSError(f"{self.path}: short write")
+                view = view[n:]
+            if self._fsync:
+                os.fsync(self._file.fileno())
+        except OSError:
+            self.lost_records += 1
+            self._undo()
+            raise
+        self._size += len(data)
         self.records += 1
         return safe
+
+    def _undo(self) -> None:
+        """Cut a partly written record off (best effort: truncating frees space)."""
+        if self._file is None:
+            return
+        with contextlib.suppress(OSError):
+            self._file.truncate(self._size)
+            self._file.seek(self._size)
 
     @property
     def closed(self) -> bool:

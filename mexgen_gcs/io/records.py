@@ -222,6 +222,30 @@ class StatusText(Record):
     text: str = f("The autopilot's text.")
 
 
+class Clock(Record):
+    """The mission clock's fit to the vehicle's SYSTEM_TIME (every 10 s of mission time)."""
+
+    type: Literal["clock"]
+    source: Literal["wall", "syncing", "vehicle"] = f(
+        "vehicle: fitted to the vehicle's time; syncing: too few samples for a rate yet; "
+        "wall: no vehicle time (the wall clock, at the fixed rate if one was given).")
+    rate: float = f("Vehicle seconds per wall second.")
+    samples: int = f("Samples in the fit's window.", ge=0)
+    fixed_rate: float = f("The rate given with --time-scale (0: measured).")
+    residual_rms_s: float = f("Spread of the samples about the fit (-1: none yet).", "s")
+    restarts: int = f("Times the vehicle's clock jumped and the fit started again.", ge=0)
+    rejected: int = f("Samples that were not a usable time.", ge=0)
+
+
+class LogLoss(Record):
+    """Records the disk refused (full, I/O error) since the last complete record, written
+    once writing works again."""
+
+    type: Literal["log_loss"]
+    lost: int = f("Records lost since the previous log_loss record.", ge=0)
+    lost_total: int = f("Records lost in the whole flight.", ge=0)
+
+
 class Localised(BaseModel):
     """Where and when a tag was localised (in a result record)."""
 
@@ -255,7 +279,7 @@ class Result(Record):
 
 FLIGHT_RECORDS: tuple[type[Record], ...] = (
     MissionHeader, Telemetry, Detection, Radio, Estimate, Cloud, Plan, Setpoint, Reject,
-    Event, Error, StatusText, Result)
+    Event, Error, StatusText, Clock, LogLoss, Result)
 
 
 # -- simulator truth ----------------------------------------------------------------------

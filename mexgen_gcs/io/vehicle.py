@@ -5,13 +5,20 @@ yaw; this module keeps those names (``v_north_m_s``, ``yaw_deg``). Positions are
 
 One MAVSDK subscription per telemetry stream, each consumed by one task owned by
 ``MavsdkVehicle.run_telemetry`` (a TaskGroup) and fanned out as the latest value in a
-``TelemetryHub``; readers take immutable ``Telemetry`` snapshots. Every command is wrapped in
-a timeout and turns MAVSDK errors into ``VehicleError(call, result)``.
+``TelemetryHub``; readers take immutable ``Telemetry`` snapshots, and listeners registered on
+the hub hear every position update, every STATUSTEXT (the autopilot's reasons) and every
+SYSTEM_TIME sample (the vehicle's clock), stamped with ``time.monotonic()`` on arrival. An
+exception in a listener or a stream ends ``run_telemetry`` (the mission contains it). Every
+command is wrapped in a timeout and turns MAVSDK errors into ``VehicleError(call, result)``.
+
+Heights: ``rel_alt_m`` is MAVSDK's ``relative_altitude_m``, height above the vehicle's own home
+(HOME_POSITION); ``abs_alt_m`` and ``home_abs_alt_m`` are AMSL.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
 import contextlib
 import logging
 import math
@@ -64,12 +71,37 @@ class Telemetry:
         return math.isfinite(self.home_lat_deg) and math.isfinite(self.home_lon_deg)
 
 
+@dataclass(frozen=True, slots=True)
+class StatusText:
+    """One STATUSTEXT from the autopilot; `mono_s` is its arrival (time.monotonic)."""
+
+    mono_s: float
+    severity: str
+    """debug | info | notice | warning | error | critical | alert | emergency."""
+    text: str
+
+
+UpdateListener = Callable[[frozenset[str], Telemetry], None]
+StatusListener = Callable[[StatusText], None]
+TimeListener = Callable[[float, float], None]
+"""(vehicle unix seconds, arrival time.monotonic seconds)."""
+
+
 class TelemetryHub:
-    """Keeps the latest `Telemetry`; writers `update(**fields)`, readers `latest`."""
+    """Keeps the latest `Telemetry`; writers `update(**fields)`, readers `latest`.
+
+    Listeners (``on_update``, ``on_status_text``, ``on_time``) are called synchronously by
+    the writer; an exception in one propagates to the writer (a telemetry stream), which is
+    how a broken consumer surfaces instead of being silently skipped.
+    """
 
     def __init__(self) -> None:
         self._state = Telemetry()
         self.messages = 0
+        self.statustexts: collections.deque[StatusText] = collections.deque(maxlen=50)
+        self.on_update: list[UpdateListener] = []
+        self.on_status_text: list[StatusListener] = []
+        self.on_time: list[TimeListener] = []
 
     @property
     def latest(self) -> Telemetry:
@@ -78,6 +110,30 @@ class TelemetryHub:
     def update(self, **fields: Any) -> None:
         self.messages += 1
         self._state = replace(self._state, updated_wall=time.monotonic(), **fields)
+        keys = frozenset(fields)
+        for listener in self.on_update:
+            listener(keys, self._state)
+
+    def status_text(self, severity: str, text: str) -> StatusText:
+        """Record one STATUSTEXT (also counts as a sign of life) and tell the listeners."""
+        st = StatusText(time.monotonic(), severity, text)
+        self.statustexts.append(st)
+        self.update()
+        for listener in self.on_status_text:
+            listener(st)
+        return st
+
+    def time_sample(self, vehicle_unix_s: float, mono_s: float | None = None) -> None:
+        """One SYSTEM_TIME sample: tell the listeners with its arrival time (now, unless the
+        receiver stamped it earlier)."""
+        mono = time.monotonic() if mono_s is None else mono_s
+        for listener in self.on_time:
+            listener(vehicle_unix_s, mono)
+
+    def recent_status_text(self, within_s: float = 10.0) -> list[StatusText]:
+        """STATUSTEXTs that arrived in the last `within_s` wall seconds, oldest first."""
+        now = time.monotonic()
+        return [st for st in self.statustexts if now - st.mono_s <= within_s]
 
     def age_s(self) -> float:
         """Wall seconds since the last telemetry message (inf before the first)."""
@@ -215,6 +271,8 @@ class MavsdkVehicle:
             for subscribe, convert in streams:
                 tg.create_task(self._pump(subscribe, convert))
             tg.create_task(self._pump_connection())
+            tg.create_task(self._pump_status_text(tel))
+            tg.create_task(self._pump_time(tel))
 
     async def _pump(self, subscribe: Callable[[], AsyncIterator[Any]],
                     convert: Callable[[Any], dict[str, Any]]) -> None:
@@ -223,6 +281,40 @@ class MavsdkVehicle:
                 self.hub.update(**convert(msg))
             except (AttributeError, TypeError, ValueError) as exc:  # a malformed value
                 log.warning("telemetry value ignored: %s", exc)
+
+    async def _pump_status_text(self, tel: Any) -> None:
+        async for st in tel.subscribe_status_text():
+            severity = getattr(getattr(st, "type", None), "name", "info").lower()
+            # PX4 pads some texts with a tab: the log keeps the words
+            self.hub.status_text(severity, str(getattr(st, "text", "")).rstrip())
+
+    async def _pump_time(self, tel: Any) -> None:
+        """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds, stamped on
+        arrival in MAVSDK's own thread (so a busy event loop does not delay the stamp); the
+        public async stream, stamped in the loop, if the native plugin is not reachable."""
+        native = getattr(tel, "_plugin", None)
+        if native is None or not hasattr(native, "subscribe_unix_epoch_time"):
+            async for time_us in tel.subscribe_unix_epoch_time():
+                self.hub.time_sample(float(time_us) / 1e6)
+            return
+        loop = asyncio.get_running_loop()
+        queue: asyncio.Queue[tuple[float, float]] = asyncio.Queue(maxsize=64)
+
+        def put(item: tuple[float, float]) -> None:
+            if not queue.full():
+                queue.put_nowait(item)
+
+        def callback(time_us: Any, _user_data: Any) -> None:  # MAVSDK's thread
+            loop.call_soon_threadsafe(put, (float(time_us) / 1e6, time.monotonic()))
+
+        handle = native.subscribe_unix_epoch_time(callback)
+        try:
+            while True:
+                unix_s, mono_s = await queue.get()
+                self.hub.time_sample(unix_s, mono_s)
+        finally:
+            with contextlib.suppress(Exception):
+                native.unsubscribe_unix_epoch_time(handle)
 
     async def _pump_connection(self) -> None:
         async for connected in self._system.is_connected_state():

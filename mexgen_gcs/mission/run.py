@@ -33,7 +33,7 @@ import yaml
 from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import ConfigError, MexgenError
-from mexgen_gcs.io.clock import Clock, ScaledClock, WallClock
+from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
 from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
 from mexgen_gcs.io.vehicle import MavsdkVehicle
@@ -120,7 +120,8 @@ async def fly_mission(
     rng = np.random.default_rng(seed)
     core = build_core(mission, rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now)
-    with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method) as flight_log:
+    with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
+                         clock=clock.now) as flight_log:
         async with RadioReceiver(radio_url, policy) as receiver:
             vehicle = MavsdkVehicle()
             truth = TruthTail(truth_path, mission) if truth_path is not None else None
@@ -140,22 +141,20 @@ async def fly_mission(
                     asyncio.get_running_loop().remove_signal_handler(sig)
                 await vehicle.close()
             result.log_dir = str(log_dir)
-            flight_log.write("result", t=clock.now(), end_reason=result.end_reason,
-                             exit_code=result.exit_code, localised=result.localised,
-                             rejects=result.rejects, duration_s=result.duration_s)
     return result
 
 
 def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
-    """SIGINT/SIGTERM ask the mission to abort (return to launch, then exit). Only possible in
-    the main thread on POSIX; elsewhere (a batch of flights in worker threads) none are set."""
+    """SIGINT is the operator's abort; SIGHUP (the terminal is gone) and SIGTERM ask the
+    mission to end too: the vehicle returns and lands, then the program exits. Only possible
+    in the main thread on POSIX; elsewhere (flights in worker threads) none are set."""
     if sys.platform == "win32" or threading.current_thread() is not threading.main_thread():
         return []
     loop = asyncio.get_running_loop()
-    sigs = [signal.SIGINT, signal.SIGTERM]
-    for sig in sigs:
-        loop.add_signal_handler(sig, controller.request, "abort")
-    return sigs
+    loop.add_signal_handler(signal.SIGINT, controller.request, "abort")
+    loop.add_signal_handler(signal.SIGTERM, controller.request, "signal:SIGTERM")
+    loop.add_signal_handler(signal.SIGHUP, controller.request, "signal:SIGHUP")
+    return [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
 
 
 def _ui_runner() -> Any:
@@ -201,8 +200,8 @@ class TruthTail:
 
 def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: SitlPorts,
                     truth_dir: Path, extra_args: list[str] | None = None,
-                    ready_timeout_s: float = 30.0) -> tuple[subprocess.Popen[str], float]:
-    """Start `python -m sim` and wait for its ready line; returns (process, start_unix)."""
+                    ready_timeout_s: float = 30.0) -> subprocess.Popen[str]:
+    """Start `python -m sim` and wait for its ready line."""
     cmd = [sys.executable, "-m", "sim", str(mission_path), "--seed", str(seed),
            "--speedup", str(speedup), "--mavlink", f"127.0.0.1:{ports.mavlink}",
            "--radio", f"127.0.0.1:{ports.radio}", "--truth-dir", str(truth_dir),
@@ -217,21 +216,10 @@ def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: Sit
         if not line:
             break
         if line.startswith("sim ready"):
-            return proc, _sim_start_unix(truth_dir / "truth.jsonl")
+            return proc
     stop_simulator(proc)
     raise MexgenError(f"the simulator did not start within {ready_timeout_s:.0f} s; "
                       f"see {truth_dir / 'sim.log'}")
-
-
-def _sim_start_unix(truth_path: Path) -> float:
-    """The simulator's clock origin from its truth header (sim time = origin + K * wall)."""
-    try:
-        with open(truth_path, encoding="utf-8") as fh:
-            header = json.loads(fh.readline())
-        return float(header["start_unix"])
-    except (OSError, ValueError, KeyError, TypeError):
-        log.warning("no start_unix in %s; assuming the simulator started now", truth_path)
-        return time.time()
 
 
 def stop_simulator(proc: subprocess.Popen[str], wait_s: float = 20.0) -> int | None:
@@ -259,13 +247,15 @@ def run_sitl(
     sim_args: list[str] | None = None,
     options: ControllerOptions | None = None,
     ui: bool = False,
+    time_scale: float | None = None,
 ) -> MissionResult:
     """Fly a mission against the built-in simulator; the scripted-SITL API.
 
     ``mission``: a path or a loaded Mission. ``overrides``: dotted keys, e.g.
     ``{"planner.method": "pim", "sim.seed": 3}``. ``ports``: defaults to the contract ports;
-    ``SitlPorts.free()`` for parallel runs. Raises ConfigError on a bad mission (nothing is
-    started).
+    ``SitlPorts.free()`` for parallel runs. The mission runs on the simulator's clock, measured
+    from its SYSTEM_TIME (``time_scale``: a known rate instead). Raises ConfigError on a bad
+    mission (nothing is started).
     """
     m = load_mission(mission) if isinstance(mission, str | os.PathLike) else mission
     if method is not None:
@@ -276,9 +266,9 @@ def run_sitl(
     resolved = out / "mission.yaml"
     resolved.write_text(yaml.safe_dump(dump_resolved(m), sort_keys=False), encoding="utf-8")
     ports = ports or SitlPorts()
-    proc, start_unix = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports,
-                                       truth_dir=out, extra_args=sim_args)
-    clock: Clock = ScaledClock(start_unix, speedup) if speedup != 1.0 else WallClock()
+    proc = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports, truth_dir=out,
+                           extra_args=sim_args)
+    clock: Clock = VehicleClock(fixed_rate=time_scale)
     try:
         result = asyncio.run(fly_mission(
             m, connect_url=f"udpin://127.0.0.1:{ports.mavlink}",
@@ -318,6 +308,11 @@ def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -
 def summary_text(result: MissionResult) -> str:
     lines = [f"mission end: {result.end_reason} (exit {result.exit_code}), "
              f"{result.duration_s:.0f} s mission time"]
+    if result.error:
+        lines.append(f"  error: {result.error}")
+    if result.takeover:
+        tk = result.takeover
+        lines.append(f"  the autopilot took control: mode {tk['mode']} ({tk['reason']})")
     for tid, info in sorted(result.localised.items()):
         err = f", error {info['error_m']:.1f} m" if "error_m" in info else ""
         lines.append(f"  {tid}: localised after {info['after_s']:.0f} s at "
@@ -348,15 +343,30 @@ def cmd_sitl(args: argparse.Namespace) -> int:
         result = run_sitl(mission, seed=args.seed if args.seed is not None else 1, ports=ports,
                           speedup=float(getattr(args, "speedup", 1.0) or 1.0),
                           method=getattr(args, "method", None),
-                          log_dir=getattr(args, "log_dir", None) or "flights", ui=ui)
+                          log_dir=getattr(args, "log_dir", None) or "flights", ui=ui,
+                          time_scale=getattr(args, "time_scale", None))
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         return 2
     except MexgenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    print(summary_text(result))
+    print_summary(result)
     return result.exit_code
+
+
+def print_summary(result: MissionResult) -> None:
+    """The summary on stdout; a dead terminal (SSH gone) loses it, nothing else (the log has
+    it all), and stdout is pointed at /dev/null so the interpreter's last flush cannot fail."""
+    try:
+        print(summary_text(result), flush=True)
+    except (OSError, ValueError):
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+        except (OSError, ValueError):
+            pass
 
 
 def cmd_fly(args: argparse.Namespace) -> int:
@@ -373,12 +383,13 @@ def cmd_fly(args: argparse.Namespace) -> int:
                         mission.planner.method, seed)
     ui = not getattr(args, "headless", False) and sys.stdout.isatty()
     radio = getattr(args, "radio", None) or mission.receiver.listen
+    clock = VehicleClock(fixed_rate=getattr(args, "time_scale", None))
     try:
         result = asyncio.run(fly_mission(
-            mission, connect_url=args.connect, radio_url=radio, clock=WallClock(), log_dir=out,
+            mission, connect_url=args.connect, radio_url=radio, clock=clock, log_dir=out,
             method=mission.planner.method, seed=seed, ui=ui))
     except MexgenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
-    print(summary_text(result))
+    print_summary(result)
     return result.exit_code

@@ -1,8 +1,8 @@
 """Safety rules: pure decisions from the mission's observed state, checked a few times a second.
 
-The vehicle's own failsafes (PX4: offboard loss, geofence, battery) stay the last line of
-defence; these rules act first and never fight them: when the vehicle is already returning or
-landing by itself, the mission does not command anything else.
+All times are mission (vehicle) seconds. The vehicle's own failsafes (PX4: offboard loss,
+geofence, battery) stay the last line of defence and outrank these rules: a mode the GCS did
+not command is a takeover (``MissionContext.check_takeover``), after which no rule here runs.
 """
 
 from __future__ import annotations
@@ -36,11 +36,10 @@ class SafetyInputs:
     elapsed_s: float
     battery_percent: float
     link_age_s: float
-    """Wall seconds since the last telemetry message."""
+    """Vehicle seconds since the last telemetry message."""
     link_connected: bool
     radio_silent_s: float
     """Mission seconds since the last radio heartbeat or detection."""
-    flight_mode: str
     link_was_lost: bool
 
 
@@ -50,16 +49,11 @@ class Decision:
     reason: str
 
 
-VEHICLE_OWN_RETURN = frozenset({"RETURN_TO_LAUNCH", "LAND"})
-
-
 def decide(inp: SafetyInputs, lim: SafetyLimits) -> Decision:
     """The first rule that fires wins; order = severity."""
     link_ok = inp.link_connected and inp.link_age_s <= lim.link_loss_timeout_s
     if not link_ok:
         return Decision(Action.HOLD, "link_lost")
-    if inp.flight_mode in VEHICLE_OWN_RETURN:
-        return Decision(Action.RTL, f"vehicle_failsafe_{inp.flight_mode.lower()}")
     if inp.link_was_lost:
         if lim.on_link_regained == "rtl":
             return Decision(Action.RTL, "link_regained_rtl")

@@ -1,5 +1,5 @@
 """Views of a running mission: the published snapshot, the headless progress line and the
-final result. Pure reads of the controller's state (the controller owns that state).
+final result. Pure functions of the mission's state object (``MissionContext``).
 
 Frames: ENU metres about home for the map, WGS84 for display positions.
 """
@@ -12,22 +12,23 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, TagView
+from mexgen_gcs.mission.state import SUCCESS, MissionResult
 
 if TYPE_CHECKING:
-    from mexgen_gcs.mission.controller import MissionController, MissionResult
+    from mexgen_gcs.mission.context import MissionContext
 
 
-def progress_line(c: MissionController) -> str:
+def progress_line(c: MissionContext) -> str:
     tel = c.vehicle.hub.latest
     done = len(c.core.localised)
-    return (f"[{c.clock.now() - c.t_start:6.0f}s] {c.state:<10} "
+    return (f"[{c.clock.now() - c.t_start:6.0f}s] {c.state.value:<10} "
             f"mode={tel.flight_mode} "
             f"alt={tel.rel_alt_m:5.1f}m speed={tel.ground_speed_m_s:4.1f}m/s "
             f"bat={tel.battery_percent:4.0f}% localised={done}/{len(c.core.tag_ids)} "
             f"heading={c.heading_deg if c.heading_deg is not None else '-'}")
 
 
-def build_snapshot(c: MissionController) -> MissionSnapshot:
+def build_snapshot(c: MissionContext) -> MissionSnapshot:
     t = c.clock.now()
     tel = c.vehicle.hub.latest
     truth = c.truth() if c.truth is not None else {}
@@ -67,11 +68,16 @@ def build_snapshot(c: MissionController) -> MissionSnapshot:
         warnings.append(f"BATTERY {tel.battery_percent:.0f}%")
     if c.hold_reason:
         warnings.append(f"HOLD: {c.hold_reason}")
+    if c.takeover is not None and not c.commander.in_control:
+        warnings.append(f"AUTOPILOT HAS CONTROL: {c.takeover.mode}")
+    if c.log.lost:
+        warnings.append(f"FLIGHT LOG: {c.log.lost} RECORDS LOST")
     if len(c.track) and c.area.distance_outside_m(np.array(c.track[-1])) > 0:
         warnings.append("OUTSIDE SEARCH AREA")
     stats = c.receiver.stats()
     return MissionSnapshot(
-        t=t, elapsed_s=t - c.t_start, state=c.state, end_reason=c.end_reason,
+        t=t, elapsed_s=t - c.t_start, state=c.state.value,
+        end_reason=None if c.end_reason is None else c.end_reason.value,
         telemetry=tel, vehicle_en_m=(float(e), float(n)), track_en_m=tuple(c.track),
         tags=tuple(tags), plan=plan, radio_heartbeat_age_s=hb_age,
         radio_accepted=stats.accepted, radio_rejects=dict(stats.rejects),
@@ -79,9 +85,9 @@ def build_snapshot(c: MissionController) -> MissionSnapshot:
         link_ok=tel.connected, area_en_m=tuple(map(tuple, c.area.vertices_m.tolist())))
 
 
-def build_result(c: MissionController) -> MissionResult:
+def build_result(c: MissionContext) -> MissionResult:
     reason = c.end_reason or "aborted"
-    ok = reason in ("all_localised", "follow_complete") and c.landed_ok
+    ok = reason in SUCCESS and c.landed_ok and c.error is None
     localised = {}
     for tid, rec in c.core.localised.items():
         lat, lon, _ = c.frame.to_geodetic(rec.estimate.mean[0], rec.estimate.mean[1])
@@ -90,9 +96,21 @@ def build_result(c: MissionController) -> MissionResult:
                           "east_m": float(rec.estimate.mean[0]),
                           "north_m": float(rec.estimate.mean[1]),
                           "radius_m": rec.estimate.radius_m}
-    from mexgen_gcs.mission.controller import MissionResult
-
+    takeover = None
+    if c.takeover is not None:
+        tk = c.takeover
+        takeover = {"t": tk.t, "mode": tk.mode, "armed": tk.armed, "reason": tk.reason,
+                    "phase": tk.phase}
+    counters = dict(c.counters)
+    counters["log_records_lost"] = c.log.lost
+    counters["faults"] = c.faults
+    commands = c.commander.summary()
+    counters["setpoints"] = commands["setpoints"]
+    counters["setpoints_withheld"] = commands["setpoints_withheld"]
+    counters.update({f"sent_{k}": v for k, v in commands["sent"].items()})
+    counters.update({f"withheld_{k}": v for k, v in commands["withheld"].items()})
     return MissionResult(
-        end_reason=reason, exit_code=0 if ok else 1, localised=localised,
+        end_reason=str(reason), exit_code=0 if ok else 1, localised=localised,
         duration_s=c.clock.now() - c.t_start,
-        rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events))
+        rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events),
+        error=c.error, takeover=takeover, counters=counters)

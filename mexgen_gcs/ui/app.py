@@ -341,7 +341,7 @@ async def run_with_ui(controller: MissionController, *, headless: bool = False,
         try:
             with terminal_logging_held():
                 await app.run_async(headless=headless, size=size, auto_pilot=auto_pilot)
-        except Exception as exc:  # the view must never take the mission down
+        except (Exception, SystemExit) as exc:  # the view must never take the mission down
             log.error("terminal UI failed (%s: %s); the mission continues without it",
                       type(exc).__name__, exc)
         finally:

@@ -88,7 +88,7 @@ tags:
     assert m.receiver.allowed_sources == ("127.0.0.1/32",)
     assert m.filter.n_particles == 2000 and m.planner.samples == 512
     assert m.safety.home_max_distance_m == 500.0 and m.sim.seed == 7
-    assert m.follow is None and m.home.alt_m == 0.0
+    assert m.follow is None and m.home.alt_m is None
 
 
 def test_demo_matches_the_documented_defaults() -> None:

@@ -98,6 +98,28 @@ def test_bad_detection_rejected():
         core.add_detection("A", math.nan, np.zeros(3), 0.0)
 
 
+def test_each_pulse_in_a_period_updates_at_its_own_pose():
+    """Two pulses of one tag buffered in one period (a late cadence) keep their own receiver
+    poses; detections of one pulse (same pose) update together."""
+    core = _core()
+    calls = []
+    real = core.filters["A"].update
+
+    def record(z, xyz, yaw):
+        calls.append((list(np.asarray(z)), tuple(xyz), yaw))
+        real(z, xyz, yaw)
+
+    core.filters["A"].update = record
+    p1, p2 = np.array([0.0, 0.0, 50.0]), np.array([10.0, 0.0, 50.0])
+    core.add_detection("A", -50.0, p1, 0.1)
+    core.add_detection("A", -70.0, p1, 0.1)  # clutter in the same pulse
+    core.add_detection("A", -48.0, p2, 0.2)  # the next pulse, 10 m further
+    r = core.pulse(1.0, p2, 0.2, listening=["A"])
+    assert r.updated["A"] == "detection"
+    assert calls == [([-50.0, -70.0], (0.0, 0.0, 50.0), 0.1), ([-48.0], (10.0, 0.0, 50.0), 0.2)]
+    assert core.detections["A"] == 3
+
+
 def test_tight_radius_is_booked_and_targeted_only_after_every_tag_is_localised():
     """Static tags circled 240 s: both localised at 50 m, then (the same flight) within 40 m.
     The tight bookkeeping never changes a target while a tag is still above 50 m."""

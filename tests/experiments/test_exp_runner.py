@@ -197,3 +197,17 @@ def test_field_radio_far_last_tag_is_localised() -> None:
         row = run_one(RunSpec(sc, "mexgen", 0, start, 0)).row
         assert row["success"] == "1", row
         assert float(row["time_s"]) < 700.0
+
+
+def test_the_vehicle_stays_inside_a_small_area() -> None:
+    """The guard (mission.guidance) is given the point mass's velocity and acceleration, so
+    its stopping-point prediction is exact and the vehicle never leaves the area, even when
+    the planner's tags sit near the edge of a 1.2 km square."""
+    sc = replace(scenario("localise", "rw", quick=True), area_half_m=600.0, initial_half_m=580.0,
+                 duration_s=240.0, min_inside_s=240.0, tight_radius_m=None)
+    area = sc.area()
+    for start in range(3):
+        res = run_one(RunSpec(sc, "pim", 0, start, 0))
+        path = res.series["vehicle_en_m"].astype(np.float64)
+        assert np.abs(path).max() > 350.0  # it does go towards the edge
+        assert float(np.max(area.distance_outside_m(path))) == 0.0

@@ -111,7 +111,7 @@ def test_crash_mid_flight_loses_at_most_the_last_line(tmp_path: Path) -> None:
         w = FlightLogWriter({str(log_dir)!r}, load_mission({str(DEMO)!r}))
         for i in range(50):
             w.write("event", kind="tick", i=i)
-        w._file.write('{{"t": 1.0, "type": "event", "kind": "tick", "i": 5')  # half a record
+        w._file.write(b'{{"t": 1.0, "type": "event", "kind": "tick", "i": 5')  # half a record
         w._file.flush()
         os._exit(9)
     """)

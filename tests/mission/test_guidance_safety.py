@@ -2,10 +2,13 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from mexgen_gcs.core.area import SearchArea
-from mexgen_gcs.mission.guidance import altitude_rate_m_s, velocity_setpoint
+from mexgen_gcs.io.vehicle import Telemetry
+from mexgen_gcs.mission.commander import Expectation, judge
+from mexgen_gcs.mission.guidance import altitude_rate_m_s, stopping_point, velocity_setpoint
 from mexgen_gcs.mission.safety import Action, SafetyInputs, SafetyLimits, decide
 
 AREA = SearchArea.rectangle(-500, 500, -500, 500)
@@ -43,7 +46,7 @@ LIM = SafetyLimits(max_mission_time_s=600, battery_rtl_percent=25, link_loss_tim
                    on_link_regained="resume", radio_heartbeat_timeout_s=3,
                    radio_loss_timeout_s=15)
 OK = SafetyInputs(elapsed_s=10, battery_percent=90, link_age_s=0.1, link_connected=True,
-                  radio_silent_s=0.5, flight_mode="OFFBOARD", link_was_lost=False)
+                  radio_silent_s=0.5, link_was_lost=False)
 
 
 
@@ -63,7 +66,6 @@ def _inp(**kw):
     ({"link_was_lost": True}, Action.RESUME_OFFBOARD, "link_regained_resume"),
     ({"radio_silent_s": 5.0}, Action.HOLD, "radio_silent"),
     ({"radio_silent_s": 16.0}, Action.RTL, "radio_lost"),
-    ({"flight_mode": "RETURN_TO_LAUNCH"}, Action.RTL, "vehicle_failsafe_return_to_launch"),
 ])
 def test_safety_rules(change, action, reason):
     d = decide(_inp(**change), LIM)
@@ -73,3 +75,76 @@ def test_safety_rules(change, action, reason):
 def test_link_regained_rtl_policy():
     lim = SafetyLimits(**{f: getattr(LIM, f) for f in LIM.__slots__} | {"on_link_regained": "rtl"})
     assert decide(_inp(link_was_lost=True), lim).action is Action.RTL
+
+
+def test_stopping_point_adds_reaction_and_braking_distance():
+    p = stopping_point(np.array([0.0, 0.0]), np.array([10.0, 0.0]), 3.0, 0.5)
+    np.testing.assert_allclose(p, [5.0 + 100.0 / 6.0, 0.0])
+
+
+def test_guard_acts_on_the_stopping_point_before_the_edge():
+    """Flying east at 10 m/s, 485 m east of centre (15 m inside): 0.3 s of latency and
+    braking at 3 m/s^2 take 19.7 m, so it turns now, while still inside."""
+    sp = velocity_setpoint(90.0, 10.0, (485.0, 0.0), 50.0, 50.0, AREA, 90.0, (10.0, 0.0))
+    assert sp.reason in ("edge", "guard") and sp.v_east_m_s < 5.0
+    slow = velocity_setpoint(90.0, 2.0, (485.0, 0.0), 50.0, 50.0, AREA, 90.0, (2.0, 0.0))
+    assert slow.reason == "fly"  # 1.3 m to stop: fine
+    outside = velocity_setpoint(90.0, 10.0, (700.0, 0.0), 50.0, 50.0, AREA, 90.0, (0.0, 0.0))
+    assert outside.reason == "guard" and outside.v_east_m_s < -9.0  # back toward the centre
+
+
+def test_a_heading_out_of_the_area_slides_along_the_edge():
+    """1 m inside the east edge, creeping east, the planner still wants east and the next
+    setpoint comes in 0.5 s: the nearest heading whose stop stays inside is flown instead
+    (along the edge, away from it), not the planner's."""
+    sp = velocity_setpoint(90.0, 10.0, (499.0, 0.0), 50.0, 50.0, AREA, 90.0, (1.0, 0.0),
+                           period_s=0.5)
+    assert sp.reason == "edge"
+    assert sp.v_east_m_s < 0.0 and abs(sp.v_north_m_s) > 5.0
+    ok = velocity_setpoint(270.0, 10.0, (499.0, 0.0), 50.0, 50.0, AREA, 90.0, (1.0, 0.0),
+                           period_s=0.5)
+    assert ok.reason == "fly"
+
+
+def test_guidance_keeps_a_simulated_flight_inside_the_area():
+    """A point mass with PX4's acceleration limit, commanded every 0.5 s (reaction), chasing
+    headings that keep pointing out of the area: it never leaves the area."""
+    rng = np.random.default_rng(0)
+    xy, v = np.array([0.0, 0.0]), np.array([0.0, 0.0])
+    dt, worst = 0.05, 0.0
+    heading = 45.0
+    sp = velocity_setpoint(heading, 12.0, tuple(xy), 50.0, 50.0, AREA, 0.0, tuple(v))
+    for k in range(20_000):
+        if k % 10 == 0:  # a new setpoint every 0.5 s, acting at once
+            if k % 400 == 0:
+                heading = float(rng.uniform(0, 360))
+            sp = velocity_setpoint(heading, 12.0, tuple(xy), 50.0, 50.0, AREA, 0.0, tuple(v),
+                                   latency_s=0.0, period_s=0.5)
+        want = np.array([sp.v_east_m_s, sp.v_north_m_s])
+        dv = want - v
+        n = np.linalg.norm(dv)
+        v_new = v + (dv if n <= 3.0 * dt else dv / n * 3.0 * dt)
+        xy = xy + 0.5 * (v + v_new) * dt
+        v = v_new
+        worst = max(worst, float(AREA.distance_outside_m(xy)))
+    assert worst < 0.1  # the simulation's 50 ms steps against the model's exact ramps
+
+
+@pytest.mark.parametrize(("mode", "armed", "seen", "in_grace", "takeover"), [
+    ("OFFBOARD", True, True, False, False),
+    ("HOLD", True, True, True, False),       # the change is still landing
+    ("HOLD", True, True, False, True),       # geofence hold
+    ("POSCTL", True, True, True, True),      # a pilot, even during the grace
+    ("RETURN_TO_LAUNCH", True, True, False, True),
+    ("UNKNOWN", True, False, False, False),  # no mode yet, before it is seen armed
+    ("UNKNOWN", True, True, False, True),    # in flight: a mode MAVSDK cannot name
+    ("OFFBOARD", False, True, False, True),  # disarmed in flight
+    ("OFFBOARD", False, False, False, False),  # never seen armed yet: telemetry lags
+])
+def test_takeover_judgement(mode, armed, seen, in_grace, takeover):
+    exp = Expectation(frozenset({"OFFBOARD"}), frozenset({"HOLD", "TAKEOFF"}),
+                      grace_until_mono=10.0)
+    now = 5.0 if in_grace else 20.0
+    tel = Telemetry(flight_mode=mode, armed=armed)
+    assert (judge(exp, tel, seen, now) is not None) == takeover
+    assert judge(None, tel, seen, now) is None  # nothing expected (on the ground)

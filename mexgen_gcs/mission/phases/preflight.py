@@ -1,0 +1,151 @@
+"""Preflight: connect, wait for health, take the clock from the vehicle, check home, wait for
+the radio, upload the geofence. Safe action: nothing is armed; the mission ends on the ground.
+
+Frames: horizontal ENU metres about the mission home; the vehicle's home (HOME_POSITION) is
+compared with the mission's horizontally and, when ``home.alt_m`` is given, in altitude AMSL.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import sys
+from collections.abc import Callable
+
+import numpy as np
+
+from mexgen_gcs.errors import VehicleError
+from mexgen_gcs.io.vehicle import wait_until
+from mexgen_gcs.mission.context import MissionContext
+from mexgen_gcs.mission.phases.common import supervised
+from mexgen_gcs.mission.state import EndReason, MissionEnd, MissionState, ReturnAction
+
+
+def _refuse(ctx: MissionContext, reason: EndReason, **fields: object) -> MissionEnd:
+    ctx.set_end(reason)
+    ctx.event("preflight_failed", level=logging.ERROR, reason=reason, **fields)
+    return MissionEnd(reason, ReturnAction.NONE)
+
+
+def warn_operator(ctx: MissionContext, kind: str, text: str, **fields: object) -> None:
+    """A warning the operator must see: an event and a line on stderr (if it still works)."""
+    ctx.event(kind, level=logging.WARNING, warning=text, **fields)
+    with contextlib.suppress(OSError, ValueError):
+        print(f"WARNING: {text}", file=sys.stderr, flush=True)
+
+
+async def run(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
+    """The checks, interruptible: a stop request or a fault anywhere ends them at once."""
+    await supervised(ctx, _checks(ctx, start_telemetry))
+
+
+async def _checks(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
+    ctx.phase = "preflight"
+    ctx.state = MissionState.CONNECTING
+    ctx.event("connecting", url=ctx.connect_url)
+    try:
+        await ctx.vehicle.connect(ctx.connect_url, ctx.opt.connect_timeout_s)
+    except VehicleError as exc:
+        ctx.error = str(exc)
+        raise _refuse(ctx, EndReason.VEHICLE_ERROR, error=str(exc)) from None
+    start_telemetry()
+    ctx.state = MissionState.PREFLIGHT
+    try:
+        await ctx.vehicle.wait_ready(ctx.opt.ready_timeout_s)
+    except VehicleError as exc:
+        ctx.error = str(exc)
+        raise _refuse(ctx, EndReason.VEHICLE_NOT_READY, error=str(exc)) from None
+    tel = ctx.vehicle.hub.latest
+    ctx.event("vehicle_ready", lat=tel.lat_deg, lon=tel.lon_deg, mode=tel.flight_mode,
+              home_alt_amsl_m=tel.home_abs_alt_m)
+    await sync_clock(ctx)
+    check_home(ctx)
+    await wait_for_radio(ctx)
+    if ctx.mission.safety.upload_geofence:
+        await upload_geofence(ctx)
+    if ctx.stop is not None:
+        raise _refuse(ctx, ctx.stop.reason, armed=False)
+
+
+async def sync_clock(ctx: MissionContext) -> None:
+    """Wait (bounded) until the mission clock follows the vehicle's SYSTEM_TIME; then the
+    mission's time origin restarts on it. Without vehicle time the wall clock stays."""
+    clock = ctx.clock
+    synced = getattr(clock, "synced", None)
+    if synced is None:  # a plain wall clock
+        return
+    loop = asyncio.get_running_loop()
+    deadline = loop.time() + ctx.opt.clock_wait_s
+    while not clock.synced and loop.time() < deadline:  # type: ignore[attr-defined]
+        await asyncio.sleep(0.05)
+    info = clock.describe()  # type: ignore[attr-defined]
+    if clock.synced:  # type: ignore[attr-defined]
+        ctx.event("clock", **info)
+    else:
+        warn_operator(ctx, "clock_fallback", "no SYSTEM_TIME from the vehicle within "
+                      f"{ctx.opt.clock_wait_s:.0f} s: the mission runs on the wall clock "
+                      f"(rate {clock.rate:g})", **info)
+    now = clock.now()
+    ctx.t_start = now
+    ctx.last_radio_t = max(ctx.last_radio_t, now) if math.isfinite(ctx.last_radio_t) else now
+
+
+def check_home(ctx: MissionContext) -> None:
+    """Compare the vehicle's home with the mission's: refuse beyond home_max_distance_m
+    outside the area, warn beyond home_mismatch_warn_m / home_alt_mismatch_warn_m."""
+    s = ctx.mission.safety
+    tel = ctx.vehicle.hub.latest
+    e, n, _ = ctx.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg)
+    home_en = np.array([float(e), float(n)])
+    offset_m = float(np.hypot(*home_en))
+    outside_m = float(ctx.area.distance_outside_m(home_en))
+    if not (math.isfinite(outside_m) and outside_m <= s.home_max_distance_m):
+        raise _refuse(ctx, EndReason.HOME_TOO_FAR_FROM_AREA,
+                      distance_outside_area_m=round(outside_m, 1),
+                      from_mission_home_m=round(offset_m, 1), limit_m=s.home_max_distance_m)
+    if offset_m > s.home_mismatch_warn_m:
+        warn_operator(ctx, "home_mismatch", f"the vehicle's home is {offset_m:.0f} m from the "
+                      f"mission's home (warn beyond {s.home_mismatch_warn_m:g} m); the area "
+                      "stays where the mission file puts it", distance_m=round(offset_m, 1))
+    alt = ctx.mission.home.alt_m
+    if alt is not None and math.isfinite(tel.home_abs_alt_m) and (
+            abs(tel.home_abs_alt_m - alt) > s.home_alt_mismatch_warn_m):
+        warn_operator(ctx, "home_alt_mismatch", f"home.alt_m = {alt:g} m but the vehicle's "
+                      f"home is at {tel.home_abs_alt_m:.1f} m AMSL (warn beyond "
+                      f"{s.home_alt_mismatch_warn_m:g} m); heights are taken from the vehicle",
+                      mission_alt_m=alt, vehicle_alt_m=round(tel.home_abs_alt_m, 1))
+    ctx.event("home_checked", distance_outside_area_m=round(outside_m, 1),
+              from_mission_home_m=round(offset_m, 1))
+
+
+async def wait_for_radio(ctx: MissionContext) -> None:
+    """A receiver heartbeat no older than receiver.heartbeat_timeout_s (mission time): the
+    radio is alive now, not just once."""
+    ctx.event("waiting_for_radio")
+    fresh_s = ctx.mission.receiver.heartbeat_timeout_s
+    try:
+        await wait_until(lambda: ctx.clock.now() - ctx.last_heartbeat_t <= fresh_s,
+                         ctx.opt.radio_wait_s, "radio heartbeat")
+    except VehicleError:
+        raise _refuse(ctx, EndReason.NO_RADIO, error=f"no radio heartbeat within "
+                      f"{ctx.opt.radio_wait_s:.0f} s on {ctx.mission.receiver.listen}") from None
+    ctx.event("radio_ok")
+
+
+async def upload_geofence(ctx: MissionContext) -> None:
+    """The convex hull of the area and both homes, pushed out by geofence_margin_m."""
+    tel = ctx.vehicle.hub.latest
+    e, n, _ = ctx.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg)
+    homes = np.array([[0.0, 0.0], [float(e), float(n)]])
+    margin = ctx.mission.safety.geofence_margin_m
+    fence = ctx.area.fence_polygon(margin, homes)
+    lat, lon, _ = ctx.frame.to_geodetic(fence[:, 0], fence[:, 1])
+    try:
+        await ctx.commander.upload_geofence(list(zip(lat.tolist(), lon.tolist(), strict=True)))
+        ctx.event("geofence_uploaded", vertices=len(fence), margin_m=margin,
+                  fence_en_m=np.round(fence, 1))
+    except VehicleError as exc:
+        warn_operator(ctx, "geofence_not_accepted", f"the vehicle did not take the geofence "
+                      f"({exc}); flying without it", error=str(exc))
