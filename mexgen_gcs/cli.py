@@ -114,6 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="submit the runs to this Dask distributed scheduler instead")
     p.add_argument("--seed", type=_nonnegative_int, default=0, metavar="S")
+    p.add_argument("--preset", choices=("paper", "field"), default="paper",
+                   help="paper: the paper's sensor (omnidirectional, every pulse heard) and "
+                   "planner; field: the mission defaults (3 dB antenna, -60 dB sensitivity)")
     p.add_argument("--quick", action="store_true",
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")

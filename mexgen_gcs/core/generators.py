@@ -4,19 +4,24 @@ Frame: local ENU metres; measurements are received powers in dB.
 
 One role, one signature: ``generate(view, rng) -> GeneratedMeasurement``. A generator sees the
 predicted belief of a batch of rows (a row is one tag x action x rollout of the planner) through
-a :class:`BeliefView`, and returns one measurement per row: a power ``z_db`` and whether the
-pulse is detected at all. The three differ only in how the measurement is generated:
+a :class:`BeliefView`, and returns for each row the power ``z_db`` it predicts should the pulse
+be detected, and its prediction ``p_detect`` of the probability that the pulse is detected at
+all. The planner weighs the two outcomes, detected (updated with z) and missed, by ``p_detect``
+(:mod:`core.rollout`). The three generators differ only in how they predict:
 
 - PIM (predicted ideal measurement): the noiseless power at the belief's weighted mean
-  position; detected when pD at that power is >= 0.5.
+  position; ``p_detect`` = pD at that power (the point estimate, again).
 - MexGen-M (measurement expectation): M states sampled from the weighted belief, a noisy
-  measurement and a Bernoulli(pD) detection draw for each; detected when at least half of the
-  samples are; z = the mean of the detected samples' noisy powers. The mean of k noisy
-  measurements is drawn as (mean of the k noiseless powers) + N(0, R / k), which has exactly
-  the distribution of the mean of k independent noisy draws and costs one normal per row.
-  The samples are stratified by default (see :class:`MexGen`).
+  measurement and a Bernoulli(pD) detection draw for each; z = the mean of the detected
+  samples' noisy powers (the expected measurement given a detection); ``p_detect`` = the mean
+  detection over the samples. With the stratified sampler (default) that mean is taken
+  exactly, ``sum w pD / sum w`` (the limit of the sample fraction, which costs nothing extra);
+  with independent samples it is the fraction detected. The mean of k noisy measurements is
+  drawn as (mean of the k noiseless powers) + N(0, R / k), which has exactly the distribution
+  of the mean of k independent noisy draws and costs one normal per row.
 - MC-M (Monte Carlo): the planner runs M independent rollouts (``rollouts = M``); each row gets
-  one sampled state, one noisy measurement of it and one Bernoulli(pD) detection draw.
+  one sampled state, one noisy measurement of it and one Bernoulli(pD) detection draw, so
+  ``p_detect`` is its sampled outcome, 0 or 1.
 
 Measurement functions are injected through the view (``power_db`` and ``log_pd`` per particle,
 ``mean_power`` and ``detection_probability`` at arbitrary positions), so the generators can be
@@ -42,8 +47,6 @@ BoolArray = NDArray[np.bool_]
 
 MethodName = Literal["pim", "mexgen", "mc"]
 
-DETECTION_THRESHOLD = 0.5
-"""PIM: detected when pD >= this; MexGen: detected when this fraction of samples is."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,9 +81,11 @@ class GeneratedMeasurement:
     """One generated measurement per row."""
 
     z_db: NDArray[np.float32]
-    """(B...) measurement (meaningful where detected)."""
-    detected: BoolArray
-    """(B...) whether the generated pulse is detected (else a missed detection)."""
+    """(B...) the measurement should the pulse be detected (finite everywhere; not used where
+    ``p_detect`` is 0)."""
+    p_detect: NDArray[np.float32]
+    """(B...) predicted probability that the pulse is detected, in [0, 1] (MC: its sampled
+    outcome, exactly 0 or 1)."""
 
 
 class MeasurementGenerator(Protocol):
@@ -114,8 +119,8 @@ class PredictedIdealMeasurement:
             sums = np.matmul(w[..., None, :], pos)[..., 0, :]
         mean_xy = sums / w.sum(axis=-1, dtype=np.float32)[..., None]
         z = np.asarray(view.mean_power(mean_xy), dtype=np.float32)
-        detected = np.asarray(view.detection_probability(z)) >= DETECTION_THRESHOLD
-        return GeneratedMeasurement(z_db=z, detected=detected)
+        p = np.asarray(view.detection_probability(z), dtype=np.float32)
+        return GeneratedMeasurement(z_db=z, p_detect=p)
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,6 +155,7 @@ class MexGen:
             mass = None if ws is None else ws.get("mexgen_mass", w.shape)
             mass = np.exp(np.broadcast_to(view.log_pd, w.shape), dtype=np.float32, out=mass)
             mass *= w
+            p_detect = mass.sum(axis=-1, dtype=np.float32) / w_total
             counts = stratified_counts(mass, m, rng, dtype=np.float32, total=w_total,
                                        scratch=ws)
             n_hit = counts.sum(axis=-1)
@@ -163,12 +169,14 @@ class MexGen:
             n_hit = np.count_nonzero(hit, axis=-1)
             total = np.where(hit, sampled, 0.0).sum(axis=-1, dtype=np.float64)
             fallback = sampled.mean(axis=-1, dtype=np.float64)
-        detected = n_hit >= DETECTION_THRESHOLD * m
-        # Where nothing is detected z is not used by the update; keep it finite anyway.
+            p_detect = n_hit / np.float32(m)
+        # Where no sample is detected (p_detect below ~1/M) z is the mean over every sample:
+        # finite, and weighted by that small p_detect in the planner.
         k = np.maximum(n_hit, 1)
         mean = np.where(n_hit > 0, total / k, fallback)
         noise = rng.standard_normal(batch) * (view.noise_std_db / np.sqrt(k))
-        return GeneratedMeasurement(z_db=(mean + noise).astype(np.float32), detected=detected)
+        return GeneratedMeasurement(z_db=(mean + noise).astype(np.float32),
+                                    p_detect=np.clip(p_detect, 0.0, 1.0).astype(np.float32))
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,7 +197,8 @@ class MonteCarlo:
         power, log_pd = (g[..., 0] for g in take_rows((view.power_db, view.log_pd), idx))
         detected = rng.random(power.shape, dtype=np.float32) < np.exp(log_pd)
         noise = rng.standard_normal(power.shape) * view.noise_std_db
-        return GeneratedMeasurement(z_db=(power + noise).astype(np.float32), detected=detected)
+        return GeneratedMeasurement(z_db=(power + noise).astype(np.float32),
+                                    p_detect=detected.astype(np.float32))
 
 
 def take_rows(

@@ -35,7 +35,8 @@ from scipy.special import log_ndtr
 from mexgen_gcs.core.radio import RadioModel
 
 Float32Array = NDArray[np.float32]
-Int32Array = NDArray[np.int32]
+IndexArray = NDArray[np.intp]
+"""Table indices: numpy's take converts any other integer type to intp first (a copy)."""
 BoolArray = NDArray[np.bool_]
 
 _TABLE_HALF_WIDTH = 40.0
@@ -48,10 +49,13 @@ LOG_FLOOR = -1.0e4
 
 @dataclass(frozen=True, eq=False)
 class DetectionTable:
-    """``log pD(P)``, ``log(1 - pD(P))`` and ``pD(P)`` for one :class:`RadioModel`, in float32.
+    """``log pD(P)``, ``log(1 - pD(P))``, ``pD(P)``, ``1 - pD(P)`` and ``(1 - pD(P))^alpha``
+    for one :class:`RadioModel`, in float32.
 
     Build it with :func:`detection_table` (cached per radio model). All lookups take any shape
-    of powers (dB) and return float32 of the same shape; cost ~5 passes over the input.
+    of powers (dB) and return float32 of the same shape; cost ~5 passes over the input. A
+    caller that needs several of them for the same powers computes the table :meth:`index`
+    once (4 passes) and then ``take_*`` each (1 pass).
     """
 
     radio: RadioModel
@@ -59,6 +63,10 @@ class DetectionTable:
     _inv_step: float = field(init=False)
     _log_pd: Float32Array = field(init=False, repr=False)
     _log_miss: Float32Array = field(init=False, repr=False)
+    _log_gap: Float32Array = field(init=False, repr=False)
+    _miss: Float32Array = field(init=False, repr=False)
+    _log_miss_exact: NDArray[np.float64] = field(init=False, repr=False)
+    _miss_pow: dict[float, Float32Array] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         r = self.radio
@@ -76,16 +84,74 @@ class DetectionTable:
         object.__setattr__(self, "_inv_step", inv_step)
         object.__setattr__(self, "_log_pd", np.maximum(log_pd, LOG_FLOOR).astype(np.float32))
         object.__setattr__(self, "_log_miss", np.maximum(log_miss, LOG_FLOOR).astype(np.float32))
+        object.__setattr__(self, "_log_gap", self._log_miss - self._log_pd)
+        # linear 1 - pD: exactly 0 (not the floor's e^-10000) where a miss is impossible
+        object.__setattr__(self, "_miss", np.exp(log_miss).astype(np.float32))
+        object.__setattr__(self, "_log_miss_exact", log_miss)
+        object.__setattr__(self, "_miss_pow", {})
+
+    def index(
+        self, power_db: NDArray[np.floating],
+        scratch: tuple[Float32Array, IndexArray] | None = None,
+        bounded: bool = False,
+    ) -> IndexArray:
+        """The table entries of powers (dB), for the ``take_*`` lookups: (...) intp (written
+        into ``scratch[1]`` if given, with ``scratch[0]`` a float32 temporary).
+
+        ``bounded``: the caller guarantees finite powers within +-10^4 dB of the sensitivity
+        (the planner's grid: at most ~100 dB from it), so the float-to-int conversion cannot
+        overflow and the clip to the table happens in the ``take_*`` alone (one pass less).
+        """
+        if not bounded:
+            return self._index(power_db, scratch)
+        f = None if scratch is None else scratch[0]
+        f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
+        f += np.float32(self._offset)
+        if scratch is None:
+            return f.astype(np.intp)  # truncation towards 0; take(mode="clip") clamps
+        np.copyto(scratch[1], f, casting="unsafe")
+        return scratch[1]
+
+    def take_log_pd(self, index: IndexArray, out: Float32Array | None = None
+                    ) -> Float32Array:
+        """log pD (>= LOG_FLOOR) at table entries :meth:`index`."""
+        return self._log_pd.take(index, out=out, mode="clip")
+
+    def take_log_miss(self, index: IndexArray, out: Float32Array | None = None
+                      ) -> Float32Array:
+        """log(1 - pD) (>= LOG_FLOOR) at table entries :meth:`index`."""
+        return self._log_miss.take(index, out=out, mode="clip")
+
+    def take_log_miss_gap(self, index: IndexArray, out: Float32Array | None = None
+                          ) -> Float32Array:
+        """log(1 - pD) - log pD (both >= LOG_FLOOR) at table entries :meth:`index`."""
+        return self._log_gap.take(index, out=out, mode="clip")
+
+    def take_miss(self, index: IndexArray, out: Float32Array | None = None
+                  ) -> Float32Array:
+        """1 - pD at table entries :meth:`index`; exactly 0 where pD = 1 (pd_max = 1)."""
+        return self._miss.take(index, out=out, mode="clip")
+
+    def take_miss_pow(self, index: IndexArray, alpha: float,
+                      out: Float32Array | None = None) -> Float32Array:
+        """(1 - pD)^alpha at table entries :meth:`index` (the table for each alpha is built
+        once, ~1 ms)."""
+        table = self._miss_pow.get(alpha)
+        if table is None:
+            with np.errstate(under="ignore"):
+                table = np.exp(alpha * self._log_miss_exact).astype(np.float32)
+            self._miss_pow[alpha] = table
+        return table.take(index, out=out, mode="clip")
 
     def _index(
-        self, power_db: NDArray[np.floating], scratch: tuple[Float32Array, Int32Array] | None
-    ) -> NDArray[np.int32]:
+        self, power_db: NDArray[np.floating], scratch: tuple[Float32Array, IndexArray] | None
+    ) -> IndexArray:
         f = None if scratch is None else scratch[0]
         f = np.asarray(np.multiply(power_db, np.float32(self._inv_step), dtype=np.float32, out=f))
         f += np.float32(self._offset)
         np.clip(f, np.float32(0.0), np.float32(self._log_pd.size - 1), out=f)
         if scratch is None:
-            return f.astype(np.int32)
+            return f.astype(np.intp)
         i = scratch[1]
         np.copyto(i, f, casting="unsafe")  # truncation = floor for f >= 0
         return i
@@ -94,17 +160,17 @@ class DetectionTable:
         self,
         power_db: NDArray[np.floating],
         out: Float32Array | None = None,
-        scratch: tuple[Float32Array, Int32Array] | None = None,
+        scratch: tuple[Float32Array, IndexArray] | None = None,
     ) -> Float32Array:
         """log pD(P) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given.
-        ``scratch``: float32 and int32 buffers shaped like the input (nothing is allocated)."""
+        ``scratch``: float32 and intp buffers shaped like the input (nothing is allocated)."""
         return self._log_pd.take(self._index(power_db, scratch), out=out, mode="clip")
 
     def log_miss(
         self,
         power_db: NDArray[np.floating],
         out: Float32Array | None = None,
-        scratch: tuple[Float32Array, Int32Array] | None = None,
+        scratch: tuple[Float32Array, IndexArray] | None = None,
     ) -> Float32Array:
         """log(1 - pD(P)) (>= LOG_FLOOR); (...) -> (...) float32, into ``out`` if given."""
         return self._log_miss.take(self._index(power_db, scratch), out=out, mode="clip")
@@ -195,6 +261,37 @@ def log_likelihood(
         out += log_pd
     if missed is not None:  # only the missed rows' powers go through the table
         out[missed] = table.log_miss(np.broadcast_to(power_db, out_shape)[missed])
+    return out
+
+
+def pooled_log_likelihood(
+    z_db: NDArray[np.floating],
+    p_detect: NDArray[np.floating],
+    power_db: Float32Array,
+    log_pd: Float32Array,
+    log_gap: Float32Array,
+    noise_var_db2: float,
+    out: Float32Array,
+    scratch: Float32Array,
+) -> Float32Array:
+    """Log-likelihood of the expected outcome of a pulse detected with probability p::
+
+        p [log pD(P) - (z - P)^2 / (2 R)] + (1 - p) log(1 - pD(P))
+          = log pD(P) + (1 - p) gap(P) - p (z - P)^2 / (2 R),   gap = log(1 - pD) - log pD
+
+    i.e. ``(pD N(z; P, R))^p (1 - pD)^(1 - p)`` up to a per-row constant: the detected
+    likelihood at p = 1, the missed one at p = 0. z_db, p_detect: (B...) per row; power_db,
+    log_pd, log_gap (``DetectionTable.take_log_miss_gap``): (B'..., N) broadcasting to the
+    rows; ``out``, ``scratch``: (B..., N) float32. Six passes, no allocation of that size.
+    """
+    z = np.asarray(z_db, dtype=np.float32)[..., None]
+    p = np.asarray(p_detect, dtype=np.float32)[..., None]
+    np.subtract(power_db, z, out=out)
+    np.square(out, out=out)
+    out *= p * np.float32(-0.5 / noise_var_db2)
+    out += log_pd
+    np.multiply(log_gap, np.float32(1.0) - p, out=scratch)
+    out += scratch
     return out
 
 

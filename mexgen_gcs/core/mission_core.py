@@ -8,6 +8,11 @@ pulse period (detections, or a missed detection when the receiver was listening 
 keeps the localisation bookkeeping (a tag localised once stays localised and is not targeted
 again, as in the paper), chooses the planning target, and prepares planning requests: pure
 arrays that a worker thread can plan on while the filters keep updating.
+
+An optional second, tighter radius (``tight_radius_m``, used by the experiments) is booked the
+same way: when each tag's radius first drops to it. It changes no decision until every tag is
+localised at the mission's radius; after that the target rule runs on the tags not yet
+within the tight radius (a flight leaves it unset and is done at that point).
 """
 
 from __future__ import annotations
@@ -50,6 +55,8 @@ class PulseReport:
     updated: dict[str, str]
     """tag -> 'detection' | 'missed' | 'predict-only'."""
     newly_localised: tuple[Localised, ...]
+    newly_tight: tuple[Localised, ...] = ()
+    """Tags whose radius first dropped to the tight radius this pulse (if one is set)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +101,7 @@ class MissionCore:
         planning_particles: int = 1000,
         t0: float = 0.0,
         tag_priors: Mapping[str, TagRadioPrior] | None = None,
+        tight_radius_m: float | None = None,
     ) -> None:
         if not tag_ids:
             raise ValueError("a mission needs at least one tag")
@@ -116,6 +124,9 @@ class MissionCore:
             for tid, child in zip(self.tag_ids, children, strict=True)
         }
         self.localised: dict[str, Localised] = {}
+        self.tight_radius_m = tight_radius_m
+        self.tight: dict[str, Localised] = {}
+        """Tags whose radius has dropped to ``tight_radius_m`` (the first time)."""
         self.detections = dict.fromkeys(self.tag_ids, 0)
         self.last_rssi_db: dict[str, float] = {}
         self._buffer = {tid: _Buffered() for tid in self.tag_ids}
@@ -162,6 +173,7 @@ class MissionCore:
         updated: dict[str, str] = {}
         estimates: dict[str, TagEstimate] = {}
         newly: list[Localised] = []
+        newly_tight: list[Localised] = []
         for tid, f in self.filters.items():
             f.predict(dt)
             buf = self._buffer[tid]
@@ -181,7 +193,12 @@ class MissionCore:
                 rec = Localised(tid, t, est)
                 self.localised[tid] = rec
                 newly.append(rec)
-        return PulseReport(t, estimates, updated, tuple(newly))
+            if (self.tight_radius_m is not None and tid not in self.tight
+                    and est.radius_m <= self.tight_radius_m
+                    and est.existence >= f.config.localised_min_existence):
+                self.tight[tid] = Localised(tid, t, est)
+                newly_tight.append(self.tight[tid])
+        return PulseReport(t, estimates, updated, tuple(newly), tuple(newly_tight))
 
     # -- decisions ---------------------------------------------------------------------------
 
@@ -190,11 +207,14 @@ class MissionCore:
 
     def targets(self, vehicle_xy: FloatArray) -> tuple[str, ...]:
         """The tags to plan for: the follow tag; or the closest (by estimate) tag not yet
-        localised; or all tags not yet localised. Empty when there is nothing left to do."""
+        localised; or all tags not yet localised; once all are, the same on the tags not yet
+        within the tight radius, if one is set. Empty when there is nothing left to do."""
         if self.kind == "follow":
             assert self.follow_tag is not None
             return (self.follow_tag,)
         pending = [tid for tid in self.tag_ids if tid not in self.localised]
+        if not pending and self.tight_radius_m is not None:
+            pending = [tid for tid in self.tag_ids if tid not in self.tight]
         if self.target_rule == "all" or not pending:
             return tuple(pending)
         xy = np.asarray(vehicle_xy, dtype=np.float64)[:2]
@@ -216,6 +236,10 @@ class MissionCore:
 
     def all_localised(self) -> bool:
         return len(self.localised) == len(self.tag_ids)
+
+    def all_tight(self) -> bool:
+        """Every tag's radius has dropped to the tight radius (False if none is set)."""
+        return self.tight_radius_m is not None and len(self.tight) == len(self.tag_ids)
 
     def particle_cloud(self, tag_id: str, k: int = 200) -> FloatArray:
         """A down-sampled (k, 2) position cloud of one tag for logs and the UI.

@@ -10,9 +10,11 @@ step k = 1..H (every ``step_s``, by default every tag pulse):
 1. predict: propagate the particles with the tag's motion model. Tag motion does not depend on
    the action, so one propagation per step serves every action (and MC rollout);
 2. measure: generate a measurement from the predicted belief with the configured generator
-   (PIM, MexGen-M or MC-M, :mod:`core.generators`), for every row at once;
-3. update: weight the particles by the likelihood of that measurement (pD N(z; P, R) for a
-   detection, 1 - pD for a miss, :mod:`core.likelihood`);
+   (PIM, MexGen-M or MC-M, :mod:`core.generators`), for every row at once: a power z and the
+   probability p that the pulse is detected at all;
+3. update: weight the particles by the likelihood of that outcome (pD N(z; P, R) for a
+   detection, 1 - pD for a miss, :mod:`core.likelihood`), the two weighed by p as
+   ``outcome`` says (:mod:`core.rollout` has the equations);
 4. reward: add ``discount^(k-1) * Renyi(updated, predicted)`` (:mod:`core.reward`).
 
 An action's value is the mean over its rollouts (MC-M: M rollouts; otherwise one) summed over
@@ -20,6 +22,17 @@ the planned tags, minus ``action_cost_weight * turn_cost`` (the turn from the cu
 in [0, 1], charged once). Actions whose path leaves the search area within the pruning horizon
 are pruned (reward -inf, never chosen); if every action is pruned the heading nearest the
 bearing to the area centre is returned with ``all_pruned`` set.
+
+Reach (``reach``, on by default): a heading held for the 20 s look-ahead covers 300 m at
+15 m/s, so for a tag 1.5-3 km away no action can get near it within the rollout and the
+comparison is between what can be learnt from afar: at the edge of detection, and across the
+bearing where the antenna's front-to-back ratio separates particles by bearing. Even the
+exact expected information (MC-M with M large) then prefers flying sideways or away, and the
+vehicle never closes in (issue 12). With ``reach`` the look-ahead is stretched, keeping its
+number of steps (so the cost), to the time needed to fly to the nearest planned belief's mean
+(``max_lookahead_s`` at most); within ``speed * lookahead_s`` of it nothing changes. The
+pruning horizon stays ``prune_horizon_s`` (default: the configured look-ahead); beyond it a
+stretched path that reaches the area's boundary is held there, as the vehicle would be.
 
 Everything is vectorised over tags x actions x rollouts x particles as float32 arrays (T, A, R,
 N) in :mod:`core.rollout`; the only Python loops are over look-ahead steps and, for the
@@ -39,10 +52,10 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, Protocol
+from typing import Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -68,6 +81,8 @@ from mexgen_gcs.errors import ConfigError, PlannerError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+OutcomeRule = Literal["pooled", "branches"]
 
 STAGES = ("predict", "measure", "update", "reward")
 """Keys of :attr:`PlanResult.timing_s`."""
@@ -107,6 +122,15 @@ class PlannerConfig:
     mexgen_stratified: bool = True
     """MexGen draws its M samples stratified (faster, never noisier) or, if False,
     independently as in the paper's description (see generators.MexGen)."""
+    outcome: OutcomeRule = "pooled"
+    """How a step's uncertain detect/miss outcome enters the reward (core.rollout): "branches"
+    = the two outcomes' rewards averaged with weights p, 1 - p; "pooled" = the reward of the
+    expected outcome, likelihood (pD N)^p (1 - pD)^(1 - p). Identical when p is 0 or 1."""
+    reach: bool = True
+    """Stretch the look-ahead (same number of steps) until it reaches the nearest planned
+    belief's mean at ``speed_m_s``, up to ``max_lookahead_s`` (see the module docstring)."""
+    max_lookahead_s: float = 300.0
+    """Longest stretched look-ahead."""
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
@@ -123,6 +147,8 @@ class PlannerConfig:
             ("action_cost_weight", self.action_cost_weight >= 0.0, ">= 0"),
             ("prune_horizon_s", self.prune_horizon_s is None or self.prune_horizon_s > 0.0,
              "> 0 or null"),
+            ("outcome", self.outcome in ("pooled", "branches"), "pooled or branches"),
+            ("max_lookahead_s", self.max_lookahead_s >= self.lookahead_s, ">= lookahead_s"),
         ]
         for name, ok, need in checks:
             if not ok:
@@ -207,6 +233,8 @@ class PlanResult:
     """Wall time of the whole call, seconds."""
     paths_m: FloatArray
     """(A, H, 2) planned horizontal positions of each action at each look-ahead step."""
+    lookahead_s: float = 0.0
+    """The look-ahead used (stretched to reach a far belief when ``reach`` is set)."""
 
     def to_record(self) -> dict[str, Any]:
         """JSON-ready summary (rewards of pruned actions as null) for the flight log."""
@@ -221,6 +249,7 @@ class PlanResult:
             "all_pruned": self.all_pruned,
             "timing_s": dict(self.timing_s),
             "total_s": self.total_s,
+            "lookahead_s": self.lookahead_s,
         }
 
 
@@ -261,6 +290,13 @@ class Planner:
         fine = vehicle_paths(xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2, times)
         paths = fine[PRUNE_SUBSTEPS - 1 :: PRUNE_SUBSTEPS][: cfg.steps]  # (H, A, 2) at the steps
         pruned = leaves_area(self._inside, fine[times <= horizon + 1e-9])
+        step_s = cfg.step_s
+        lookahead_s = reach_lookahead_s(cfg, beliefs, xyz) if cfg.reach else cfg.lookahead_s
+        if lookahead_s > cfg.steps * cfg.step_s + 1e-9:
+            step_s = lookahead_s / cfg.steps
+            paths = _held_inside(self._inside, xyz, vehicle_paths(
+                xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2,
+                step_s * np.arange(1.0, cfg.steps + 1.0)))
         timing = dict.fromkeys(STAGES, 0.0)
         rewards = np.full(headings.shape, -np.inf)
         all_pruned = bool(pruned.all())
@@ -274,8 +310,8 @@ class Planner:
             for group in _groups_of_equal_size(beliefs):
                 per_tag = rollout_gains(
                     group, paths[:, active], float(xyz[2]), headings[active], self.radio,
-                    self._table, self.generator, cfg.step_s, cfg.discount, cfg.alpha, rng,
-                    timing, self._workspace,
+                    self._table, self.generator, step_s, cfg.discount, cfg.alpha, rng,
+                    timing, self._workspace, pooled=cfg.outcome == "pooled",
                 )
                 gains += per_tag.sum(axis=0)
             if cfg.action_cost_weight > 0.0:
@@ -298,6 +334,7 @@ class Planner:
             timing_s=MappingProxyType(timing),
             total_s=time.perf_counter() - t_start,
             paths_m=_frozen(np.ascontiguousarray(paths.transpose(1, 0, 2))),
+            lookahead_s=step_s * cfg.steps,
         )
 
 
@@ -311,6 +348,31 @@ def plan(
 ) -> PlanResult:
     """One-off :meth:`Planner.plan` (allocates a fresh workspace; a mission keeps a Planner)."""
     return Planner(config, radio, area).plan(beliefs, vehicle, rng)
+
+
+def reach_lookahead_s(
+    config: PlannerConfig, beliefs: Sequence[PlanningBelief], vehicle_xyz_m: FloatArray
+) -> float:
+    """The look-ahead that reaches the nearest belief: distance from the vehicle to the nearest
+    planned belief's mean position over ``speed_m_s``, clipped to [lookahead_s,
+    max_lookahead_s]. O(T N)."""
+    xy = np.asarray(vehicle_xyz_m, dtype=np.float64)[:2]
+    dist = min(float(np.linalg.norm(np.asarray(b.states)[:, :2].mean(axis=0) - xy))
+               for b in beliefs)
+    return min(max(config.lookahead_s, dist / config.speed_m_s), config.max_lookahead_s)
+
+
+def _held_inside(
+    inside: Callable[[FloatArray], BoolArray], xyz: FloatArray, paths: FloatArray
+) -> FloatArray:
+    """Stretched paths (H, A, 2) held at their last point inside the area from the first one
+    outside on (the vehicle is kept in the area; it does not fly on beyond the boundary). An
+    action whose first point is already outside holds the vehicle's position. O(H A)."""
+    ext = np.concatenate([np.broadcast_to(xyz[:2], (1, *paths.shape[1:])), paths])
+    kept = np.logical_and.accumulate(np.concatenate(
+        [np.ones((1, paths.shape[1]), dtype=bool), inside(paths)]), axis=0)
+    last = np.cumsum(kept, axis=0)[1:] - 1  # index into ext of the last kept point, (H, A)
+    return np.take_along_axis(ext, last[..., None], axis=0)
 
 
 def _check_beliefs(beliefs: Sequence[PlanningBelief]) -> None:

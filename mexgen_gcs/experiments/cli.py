@@ -96,9 +96,10 @@ def _log_failure(out: Path, failure: RunFailure) -> None:
 
 
 def _command(args: argparse.Namespace) -> str:
-    parts = ["mexgen-gcs", "experiment", args.scenario, "--model", args.model, "--methods",
-             args.methods, "--starts", str(args.starts), "--reps", str(args.reps), "--seed",
-             str(args.seed), "--out", str(args.out)]
+    parts = ["mexgen-gcs", "experiment", args.scenario, "--model", args.model, "--preset",
+             getattr(args, "preset", "paper"), "--methods", args.methods, "--starts",
+             str(args.starts), "--reps", str(args.reps), "--seed", str(args.seed), "--out",
+             str(args.out)]
     if args.workers:
         parts += ["--workers", str(args.workers)]
     if args.scheduler:
@@ -113,7 +114,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     failed (see DIR/failures.log; rerun to retry them), 2 on bad input, 130 if interrupted
     (rerun the same command to resume)."""
     methods = parse_methods(args.methods)
-    sc = scenario(args.scenario, args.model, quick=bool(args.quick))
+    sc = scenario(args.scenario, args.model, quick=bool(args.quick),
+                  preset=getattr(args, "preset", "paper"))
     try:
         result = run_experiment(sc, methods, starts=args.starts, reps=args.reps,
                                 seed=args.seed, out_dir=args.out, workers=args.workers,

@@ -12,7 +12,14 @@ Time is simulated: no sockets, no sleeping, no clock read for decisions. Cadence
 controller's: plan at t = 0 on the prior; every pulse period the vehicle flies the current
 setpoint (recomputed every control period), the receiver measures every tag, the core runs
 its pulse; every ``replan_interval_s`` (after that pulse) the core's plan request is planned
-and the chosen heading flown until the next plan.
+and the chosen heading flown until the next plan. The scenario's two planner settings the
+mission schema lacks (``planner_reach``, ``planner_outcome``) are applied to the planner config.
+
+Localisation is read twice from the same run: at the mission's radius (``localised_radius_m``,
+Success / Time as the paper) and at ``tight_radius_m``. The run goes on after every tag is
+localised at the first radius, the core's target rule now on the tags not yet within the
+tight one, until they all are or the time limit; the decisions before the first completion
+are those of a run that stops there.
 
 ``run_one`` is the task function of the process pool and of Dask workers: a pure function of
 its ``RunSpec`` (the same spec gives the same row anywhere, wall times aside).
@@ -23,12 +30,12 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.mission_core import MissionCore
+from mexgen_gcs.core.mission_core import Localised, MissionCore
 from mexgen_gcs.core.planner import Planner, VehicleState
 from mexgen_gcs.experiments.scenario import Scenario, method_config, mission_for
 from mexgen_gcs.experiments.seeds import run_seeds
@@ -44,10 +51,13 @@ COLUMNS = (
     "success", "time_s", "n_localised", "error_m", "errors_m", "localised_t_s",
     "error_mean_m", "error_final_m", "trace_mean_m2", "trace_final_m2",
     "sim_s", "wall_s", "cpu_s", "plans", "plan_ms_median", "detections",
+    "radius_m", "tight_radius_m", "tight_success", "tight_time_s", "tight_n_localised",
+    "tight_error_m", "tight_errors_m", "tight_localised_t_s",
 )
-"""runs.csv columns. Localise fills success..localised_t_s, follow error_mean_m..trace_final_m2;
-the rest is common. ``errors_m`` and ``localised_t_s`` hold one value per tag, ';'-separated
-(empty where a tag was not localised)."""
+"""runs.csv columns (format 2: format 1 had the first 24). Localise fills success..
+localised_t_s and radius_m..tight_localised_t_s (the same at the tight radius), follow
+error_mean_m..trace_final_m2; the rest is common. ``*errors_m`` and ``*localised_t_s`` hold one
+value per tag, ';'-separated (empty where a tag was not localised)."""
 TIMING_COLUMNS = ("wall_s", "cpu_s", "plan_ms_median")
 """Columns that measure the machine rather than the run (differ between repeats)."""
 
@@ -94,8 +104,11 @@ def run_one(spec: RunSpec) -> RunResult:
         mission.filter_config(), gcs.spawn(1)[0], kind=mission.kind,
         target_rule=mission.planner.target,
         follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, t0=0.0)
-    planner = Planner(planner_config(mission, planner_method), radio_model, area)
+        planning_particles=mission.planner.n_particles, t0=0.0,
+        tight_radius_m=sc.tight_radius_m if sc.kind == "localise" else None)
+    config = replace(planner_config(mission, planner_method), reach=sc.planner_reach,
+                     outcome=sc.planner_outcome)  # type: ignore[arg-type]
+    planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]
     radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio))
     vehicle = PointMass(0.0, 0.0, sc.alt_m, sc.speed_m_s, sc.max_accel_m_s2)
@@ -124,14 +137,20 @@ def run_one(spec: RunSpec) -> RunResult:
     error_m = np.full((steps, sc.n_tags), np.nan)
     trace_m2 = np.full((steps, sc.n_tags), np.nan)
     localised_err: dict[str, float] = {}
+    tight_err: dict[str, float] = {}
     detections = 0
     done_t: float | None = None
+    tight_t: float | None = None
     k = 0
     for k in range(1, steps + 1):
         t = k * sc.pulse_period_s
         for _ in range(n_sub):
+            # the guard predicts the point mass exactly: its velocity, its acceleration limit
+            # for speeding up and braking, no latency, the next command after dt_sub
             sp = velocity_setpoint(heading_deg, sc.speed_m_s, (vehicle.east_m, vehicle.north_m),
-                                   vehicle.alt_m, sc.alt_m, area, vehicle.yaw_deg, 0.0)
+                                   vehicle.alt_m, sc.alt_m, area, vehicle.yaw_deg,
+                                   (vehicle.v_east_m_s, vehicle.v_north_m_s),
+                                   brake_m_s2=sc.max_accel_m_s2, latency_s=0.0, period_s=dt_sub)
             vehicle.step(sp.v_east_m_s, sp.v_north_m_s, sp.yaw_deg, dt_sub)
         tag_xy = truth.states[k, :, :2]
         rx_xyz, yaw_rad = vehicle.xyz_m, vehicle.yaw_rad
@@ -149,8 +168,13 @@ def run_one(spec: RunSpec) -> RunResult:
             trace_m2[i, j] = est.trace_pos_m2
         for rec in report.newly_localised:
             localised_err[rec.tag_id] = error_m[i, tag_ids.index(rec.tag_id)]
-        if sc.kind == "localise" and core.all_localised():
+        for rec in report.newly_tight:
+            tight_err[rec.tag_id] = error_m[i, tag_ids.index(rec.tag_id)]
+        if sc.kind == "localise" and done_t is None and core.all_localised():
             done_t = t
+        if sc.kind == "localise" and core.all_tight():
+            tight_t = t
+        if done_t is not None and (tight_t is not None or core.tight_radius_m is None):
             break
         if t >= next_plan_t - 1e-9:
             heading_deg = replan(t)
@@ -160,6 +184,10 @@ def run_one(spec: RunSpec) -> RunResult:
                sim_s=float(t_s[n - 1]), wall_s=time.perf_counter() - wall0,
                cpu_s=time.process_time() - cpu0, plan_s=plan_s,
                detections=detections)
+    if sc.kind == "localise":
+        row.update(_reading(core.tag_ids, core.tight, tight_err, tight_t, "tight_"),
+                   radius_m=_num(sc.localised_radius_m),
+                   tight_radius_m=_num(sc.tight_radius_m))
     series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
               "trace_m2": trace_m2[:n]}
     return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()})
@@ -172,25 +200,34 @@ def _num(x: float | None) -> str:
     return repr(float(x))
 
 
+def _reading(tag_ids: tuple[str, ...], localised: dict[str, Localised],
+             errors: dict[str, float], done_t: float | None, prefix: str = "") -> dict[str, str]:
+    """The localisation columns of one radius: success, time, count, mean and per-tag errors
+    and times (column names with ``prefix``)."""
+    errs = [errors[t] for t in tag_ids if t in errors]
+    return {
+        f"{prefix}success": "1" if done_t is not None else "0",
+        f"{prefix}time_s": _num(done_t),
+        f"{prefix}n_localised": str(len(localised)),
+        f"{prefix}error_m": _num(float(np.mean(errs))) if errs else "",
+        f"{prefix}errors_m": ";".join(_num(errors.get(t)) for t in tag_ids),
+        f"{prefix}localised_t_s": ";".join(
+            _num(localised[t].t) if t in localised else "" for t in tag_ids),
+    }
+
+
 def _row(spec: RunSpec, digest: str, core: MissionCore, localised_err: dict[str, float],
          done_t: float | None, error_m: FloatArray, trace_m2: FloatArray, *, sim_s: float,
          wall_s: float, cpu_s: float, plan_s: list[float], detections: int) -> dict[str, str]:
     sc = spec.scenario
     row = dict.fromkeys(COLUMNS, "")
-    row.update(scenario=sc.kind, preset=sc.preset, seed=str(spec.seed), model=sc.model,
+    row.update(scenario=sc.kind, preset=sc.label, seed=str(spec.seed), model=sc.model,
                method=spec.method, start=str(spec.start), rep=str(spec.rep),
                truth_digest=digest, sim_s=_num(sim_s), wall_s=f"{wall_s:.3f}", cpu_s=f"{cpu_s:.3f}",
                plans=str(len(plan_s)), detections=str(detections),
                plan_ms_median=f"{1e3 * statistics.median(plan_s):.2f}" if plan_s else "")
     if sc.kind == "localise":
-        errs = [localised_err[t] for t in core.tag_ids if t in localised_err]
-        row.update(
-            success="1" if done_t is not None else "0", time_s=_num(done_t),
-            n_localised=str(len(core.localised)),
-            error_m=_num(float(np.mean(errs))) if errs else "",
-            errors_m=";".join(_num(localised_err.get(t)) for t in core.tag_ids),
-            localised_t_s=";".join(
-                _num(core.localised[t].t) if t in core.localised else "" for t in core.tag_ids))
+        row.update(_reading(core.tag_ids, core.localised, localised_err, done_t))
     else:
         e, tr = error_m[:, 0], trace_m2[:, 0]
         row.update(error_mean_m=_num(float(np.mean(e))), error_final_m=_num(float(e[-1])),

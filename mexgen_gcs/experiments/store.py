@@ -33,7 +33,9 @@ from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.runner import COLUMNS, RunResult, RunSpec
 from mexgen_gcs.experiments.scenario import Scenario, mission_yaml
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: runs.csv gained the tight-radius reading (runner.COLUMNS), presets paper|field. A
+directory of another format is refused for writing; the report reads both."""
 RUNS_CSV = "runs.csv"
 EXPERIMENT_JSON = "experiment.json"
 
@@ -130,10 +132,15 @@ class RunStore:
         sc = self.scenario
         settings = sc.describe()
         ident = read_identity(self.out_dir)
-        want = {"format": FORMAT_VERSION, "scenario": sc.kind, "preset": sc.preset,
+        want = {"format": FORMAT_VERSION, "scenario": sc.kind, "preset": sc.label,
                 "seed": self.seed}
         if ident is None:
             ident = {**want, "settings": {}}
+        if ident.get("format") != FORMAT_VERSION:
+            raise ConfigError(
+                f"--out {self.out_dir} was written by experiment format {ident.get('format')!r}"
+                f" (this is {FORMAT_VERSION}: new runs.csv columns); its summary can still be "
+                "rewritten, but choose another directory for new runs")
         for key, value in want.items():
             if ident.get(key) != value:
                 raise ConfigError(

@@ -64,7 +64,7 @@ def truth_model(sc: Scenario, turn_rate_deg_s: float | FloatArray) -> MotionMode
     lo, hi = sc.truth_speed_m_s
     model = make_motion_model(
         sc.truth_motion,  # type: ignore[arg-type]
-        rw_std_m_per_sqrt_s=sc.rw_std_m_per_sqrt_s, accel_std_m_s2=sc.accel_std_m_s2,
+        rw_std_m_per_sqrt_s=sc.truth_rw_std_m_per_sqrt_s, accel_std_m_s2=sc.truth_accel_std_m_s2,
         speed_min_m_s=lo, speed_max_m_s=hi)
     if isinstance(model, CvIft):
         model = replace(model, turn_rate_rad_s=np.radians(turn_rate_deg_s))

@@ -80,11 +80,12 @@ def test_contract_shapes_types_and_reproducibility(gen):
     before = (w.copy(), view.power_db.copy())
     a = gen.generate(view, np.random.default_rng(5))
     b = gen.generate(view, np.random.default_rng(5))
-    assert a.z_db.shape == a.detected.shape == (2, 3, gen.rollouts)
-    assert a.z_db.dtype == np.float32 and a.detected.dtype == np.bool_
+    assert a.z_db.shape == a.p_detect.shape == (2, 3, gen.rollouts)
+    assert a.z_db.dtype == np.float32 and a.p_detect.dtype == np.float32
     assert np.all(np.isfinite(a.z_db))
+    assert np.all((a.p_detect >= 0.0) & (a.p_detect <= 1.0))
     np.testing.assert_array_equal(a.z_db, b.z_db)
-    np.testing.assert_array_equal(a.detected, b.detected)
+    np.testing.assert_array_equal(a.p_detect, b.p_detect)
     np.testing.assert_array_equal(w, before[0])
     np.testing.assert_array_equal(view.power_db, before[1])
 
@@ -97,7 +98,7 @@ def test_weights_need_not_be_normalised(gen):
     a = gen.generate(linear_view(w, pos), np.random.default_rng(2))
     b = gen.generate(linear_view(w * 123.0, pos), np.random.default_rng(2))
     np.testing.assert_allclose(a.z_db, b.z_db, rtol=1e-5)
-    np.testing.assert_array_equal(a.detected, b.detected)
+    np.testing.assert_allclose(a.p_detect, b.p_detect, rtol=1e-5)
 
 
 def test_make_generator():
@@ -123,7 +124,7 @@ def test_pim_equals_the_expected_measurement_for_a_linear_model():
     out = PredictedIdealMeasurement().generate(view, rng)
     expected = w @ view.power_db.astype(np.float64)  # E[h(x)] = h(E[x]) when h is linear
     np.testing.assert_allclose(out.z_db, expected, rtol=1e-5)
-    assert out.detected.all()
+    np.testing.assert_array_equal(out.p_detect, 1.0)
 
 
 @pytest.mark.parametrize("stratified", [True, False])
@@ -160,37 +161,76 @@ def test_mc_draws_one_noisy_measurement_of_one_sampled_state():
     assert z.var() == pytest.approx(var, rel=0.05)  # the whole predictive spread, as the paper
 
 
-# -- missed detections follow the detection model ---------------------------------------------
+# -- detection predictions against a direct computation --------------------------------------
 
 
-def test_pim_detects_when_pd_at_the_mean_is_at_least_half():
+def _edge_view(rng, n=400, reps=1):
+    """A belief straddling the detection edge of the mission-default radio (pD 0.1-0.9)."""
+    radio = RadioModel()
+    pos = rng.normal((2900.0, 0.0), 400.0, (n, 2))
+    w = rng.dirichlet(np.ones(n))
+    view = radio_view(np.broadcast_to(w, (reps, n)).astype(np.float32), pos, radio)
+    pd = radio.detection_probability(view.power_db.astype(np.float64))
+    return radio, pos, w, view, pd
+
+
+def test_pim_predicts_pd_at_the_mean_states_noiseless_power():
+    """A bimodal belief, one mode heard surely, one seldom: PIM's pD is that of the point
+    between them, not the belief's mean pD."""
     rng = np.random.default_rng(7)
-    pos = rng.normal(0.0, 10.0, (20, 2))
-    w = np.full((1, 20), 0.05)
-    assert PredictedIdealMeasurement().generate(linear_view(w, pos, pd=0.6), rng).detected.all()
-    assert not PredictedIdealMeasurement().generate(linear_view(w, pos, pd=0.4), rng).detected.any()
+    radio = RadioModel()
+    pos = bimodal(rng, 400, centres=((300.0, 0.0), (4200.0, 0.0)), spread=30.0)
+    w = np.full((1, 400), 1.0 / 400)
+    view = radio_view(w.astype(np.float32), pos, radio)
+    out = PredictedIdealMeasurement().generate(view, rng)
+    power = radio.power_db(w[0] @ pos, np.array([0.0, 0.0, 50.0]), 0.0)
+    assert out.z_db[0] == pytest.approx(power, abs=1e-3)
+    assert out.p_detect[0] == pytest.approx(radio.detection_probability(power), abs=1e-5)
+    mean_pd = float(w[0] @ radio.detection_probability(view.power_db.astype(np.float64)))
+    assert 0.3 < mean_pd < 0.7
+    assert out.p_detect[0] > mean_pd + 0.15
 
 
-@pytest.mark.parametrize("stratified", [True, False])
-def test_mexgen_detects_when_at_least_half_the_samples_do(stratified):
+def test_stratified_mexgen_predicts_the_belief_mean_pd_exactly():
+    """sum w pD / sum w, with pD from the planner's table (log_pd in the view)."""
+    rng = np.random.default_rng(8)
+    _, _, w, view, pd = _edge_view(rng, reps=3)
+    out = MexGen(512).generate(view, rng)
+    table_pd = np.exp(view.log_pd.astype(np.float64))
+    np.testing.assert_allclose(out.p_detect, w @ table_pd, rtol=1e-5)
+    np.testing.assert_allclose(out.p_detect, w @ pd, atol=2e-3)  # table vs scipy
+
+
+def test_independent_mexgen_predicts_the_detected_fraction_of_its_samples():
+    rng = np.random.default_rng(9)
+    m, reps = 256, 2000
+    _, _, w, view, _ = _edge_view(rng, reps=reps)
+    p = MexGen(m, stratified=False).generate(view, rng).p_detect.astype(np.float64)
+    assert set(np.unique(np.round(p * m, 3))) <= set(range(m + 1))  # a fraction of M
+    exact = float(w @ np.exp(view.log_pd.astype(np.float64)))
+    se = math.sqrt(exact * (1.0 - exact) / m)
+    assert abs(p.mean() - exact) < 5 * se / math.sqrt(reps)
+    assert p.std() == pytest.approx(se, rel=0.1)  # binomial spread of M samples
+
+
+def test_mexgen_z_is_the_mean_of_the_detected_samples_only():
     """Half the particles can be heard (pD = 1), half cannot (pD = 0)."""
     rng = np.random.default_rng(8)
     pos = rng.normal(0.0, 50.0, (200, 2))
     heard = np.arange(200) < 100
-    for w_heard, expect in ((0.3, False), (0.7, True)):
-        w = np.where(heard, w_heard / 100, (1 - w_heard) / 100)[None, :].astype(np.float32)
+    for stratified in (True, False):
+        w = np.where(heard, 0.7 / 100, 0.3 / 100)[None, :].astype(np.float32)
         view = linear_view(w, pos, noise_std=1e-3)
         view = BeliefView(**{**{f: getattr(view, f) for f in view.__slots__},
                              "log_pd": np.where(heard, 0.0, -1e4).astype(np.float32)})
         out = MexGen(2048, stratified).generate(view, rng)
-        assert bool(out.detected[0]) is expect
-        if expect:  # z is the mean of the detected samples only
-            p_heard = view.power_db[heard].astype(np.float64)
-            se = p_heard.std() / math.sqrt(0.7 * 2048)
-            assert out.z_db[0] == pytest.approx(p_heard.mean(), abs=5 * se)
+        assert out.p_detect[0] == pytest.approx(0.7, abs=0.0 if stratified else 0.05)
+        p_heard = view.power_db[heard].astype(np.float64)
+        se = p_heard.std() / math.sqrt(0.7 * 2048)
+        assert out.z_db[0] == pytest.approx(p_heard.mean(), abs=5 * se)
 
 
-def test_mc_detection_frequency_is_the_belief_average_pd():
+def test_mc_outcome_is_sampled_and_its_frequency_is_the_belief_average_pd():
     rng = np.random.default_rng(9)
     pos = rng.normal(0.0, 50.0, (100, 2))
     w = rng.dirichlet(np.ones(100))
@@ -199,8 +239,9 @@ def test_mc_detection_frequency_is_the_belief_average_pd():
     view = linear_view(np.broadcast_to(w, (reps, 100)).astype(np.float32), pos)
     view = BeliefView(**{**{f: getattr(view, f) for f in view.__slots__},
                          "log_pd": np.log(pd).astype(np.float32)})
-    rate = MonteCarlo(1).generate(view, rng).detected.mean()
-    assert rate == pytest.approx(float(w @ pd), abs=0.015)
+    p = MonteCarlo(1).generate(view, rng).p_detect
+    assert set(np.unique(p)) == {0.0, 1.0}
+    assert p.mean() == pytest.approx(float(w @ pd), abs=0.015)
 
 
 # -- the paper's lemma on a bimodal belief and the radio model --------------------------------

@@ -118,3 +118,47 @@ def test_each_pulse_in_a_period_updates_at_its_own_pose():
     assert r.updated["A"] == "detection"
     assert calls == [([-50.0, -70.0], (0.0, 0.0, 50.0), 0.1), ([-48.0], (10.0, 0.0, 50.0), 0.2)]
     assert core.detections["A"] == 3
+
+
+def test_tight_radius_is_booked_and_targeted_only_after_every_tag_is_localised():
+    """Static tags circled 240 s: both localised at 50 m, then (the same flight) within 40 m.
+    The tight bookkeeping never changes a target while a tag is still above 50 m."""
+    core, plain = _core(tight_radius_m=40.0), _core()
+    rng, rng_plain = np.random.default_rng(1), np.random.default_rng(1)
+    first_done = None
+    for k in range(1, 241):
+        report = _fly_one(core, k, rng)
+        _fly_one(plain, k, rng_plain)
+        for tid in report.newly_tight:
+            assert tid.tag_id in core.localised and tid.estimate.radius_m <= 40.0
+        if first_done is None and core.all_localised():
+            first_done = k
+        if not core.all_localised():
+            for xy in TAGS.values():
+                assert core.targets(xy) == plain.targets(xy)
+    assert first_done is not None and core.all_tight()
+    assert set(core.tight) == set(TAGS)
+    assert all(core.tight[t].t >= core.localised[t].t for t in TAGS)
+    assert core.targets(np.zeros(2)) == ()
+    assert not plain.all_tight() and plain.tight == {}
+
+
+def test_after_the_first_completion_the_target_is_the_closest_tag_above_the_tight_radius():
+    core = _core(tight_radius_m=1.0)  # never reached
+    rng = np.random.default_rng(1)
+    for k in range(1, 241):
+        _fly_one(core, k, rng)
+    assert core.all_localised() and not core.all_tight()
+    assert core.targets(TAGS["A"]) == ("A",) and core.targets(TAGS["B"]) == ("B",)
+    assert _core(tight_radius_m=1.0, target_rule="all").targets(np.zeros(2)) == ("A", "B")
+
+
+def _fly_one(core, k, rng, radius=350.0):
+    ang = 2 * math.pi * k / 240
+    rx = np.array([radius * math.cos(ang), radius * math.sin(ang), 50.0])
+    yaw = (-ang) % (2 * math.pi)
+    for tid, xy in TAGS.items():
+        p = RADIO.power_db(xy, rx, yaw)
+        if RADIO.detect(p, rng):
+            core.add_detection(tid, float(RADIO.measure(p, rng)), rx, yaw)
+    return core.pulse(float(k), rx, yaw, listening=list(TAGS))

@@ -4,6 +4,7 @@ cluster on loopback, resumption after a kill or an interrupt, the CLI and the re
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 import signal
@@ -16,8 +17,10 @@ from pathlib import Path
 
 import psutil
 import pytest
+import yaml
 
 from mexgen_gcs.cli import main
+from mexgen_gcs.config import CLASSIC_ESTIMATOR
 from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.cli import ExperimentOutcome, run_experiment, run_specs
 from mexgen_gcs.experiments.parallel import execute
@@ -204,3 +207,24 @@ def test_cli_follow_writes_the_time_series_plots(tmp_path: Path,
     for name in ("follow-cv.png", "trajectories-cv.png", "summary.md"):
         assert (tmp_path / name).stat().st_size > 0
     assert "| CV | MexGen | 2 |" in (tmp_path / "summary.md").read_text()
+
+
+def test_cli_preset_field_flies_the_mission_defaults(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["experiment", "localise", "--model", "cv", "--preset", "field", "--methods",
+                 "pim", "--starts", "1", "--reps", "1", "--quick", "--workers", "1", "--out",
+                 str(tmp_path)]) == 0
+    ident = json.loads((tmp_path / "experiment.json").read_text())
+    assert ident["preset"] == "field-quick" and ident["format"] == 2
+    mission = yaml.safe_load((tmp_path / "missions" / "cv-pim.yaml").read_text())
+    assert mission["radio"] == {"front_back_db": 3.0, "sensitivity_db": -60.0,
+                                "detection_spread_db": 2.0, "pd_max": 0.95,
+                                **{k.split(".")[1]: v for k, v in CLASSIC_ESTIMATOR.items()}}
+    assert read_rows(tmp_path)[0]["preset"] == "field-quick"
+    summary = (tmp_path / "summary.md").read_text()
+    assert "field-quick preset" in summary and "sensitivity -60 dB" in summary
+    assert "--preset field" in (tmp_path / "commands.log").read_text()
+    # the default preset is the paper's: another directory's identity
+    assert main(["experiment", "localise", "--model", "cv", "--methods", "pim", "--starts", "1",
+                 "--reps", "1", "--quick", "--workers", "1", "--out", str(tmp_path)]) == 2
+    assert "preset" in capsys.readouterr().err

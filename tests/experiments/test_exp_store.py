@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import pytest
 
 from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.progress import Progress
-from mexgen_gcs.experiments.runner import RunSpec, run_one
+from mexgen_gcs.experiments.runner import COLUMNS, RunSpec, run_one
 from mexgen_gcs.experiments.scenario import scenario
 from mexgen_gcs.experiments.store import RunStore, read_rows, read_series
 
@@ -63,6 +64,8 @@ def test_a_directory_holds_one_experiment(tmp_path: Path) -> None:
         RunStore(tmp_path, SC, 1, METHODS).__enter__()
     with pytest.raises(ConfigError, match="preset"):
         RunStore(tmp_path, scenario("localise", "rw"), 0, METHODS).__enter__()
+    with pytest.raises(ConfigError, match="preset"):
+        RunStore(tmp_path, scenario("localise", "rw", True, "field"), 0, METHODS).__enter__()
     with pytest.raises(ConfigError, match="scenario"):
         RunStore(tmp_path, scenario("follow", "rw", quick=True), 0, METHODS).__enter__()
     with pytest.raises(ConfigError, match="lookahead_s"):
@@ -95,3 +98,15 @@ def test_progress_draws_on_a_terminal_only() -> None:
     q.update()
     q.close()
     assert quiet.getvalue() == ""
+
+
+def test_a_directory_of_the_previous_format_is_refused_for_writing(tmp_path: Path) -> None:
+    """Format 1 (no tight reading in runs.csv): new runs go elsewhere, nothing is touched."""
+    ident = {"format": 1, "scenario": "localise", "preset": "paper-quick", "seed": 0,
+             "settings": {}}
+    (tmp_path / "experiment.json").write_text(json.dumps(ident))
+    header = ",".join(COLUMNS[:24]) + "\n"
+    (tmp_path / "runs.csv").write_text(header)
+    with pytest.raises(ConfigError, match="format 1"):
+        RunStore(tmp_path, SC, 0, METHODS).__enter__()
+    assert (tmp_path / "runs.csv").read_text() == header

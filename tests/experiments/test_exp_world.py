@@ -81,7 +81,7 @@ def test_truth_is_initialised_as_the_paper_says(kind: str, model: str) -> None:
 def test_cv_ift_truth_turns_at_its_own_rate() -> None:
     """In a turn mode the heading changes by the object's own drawn rate per second."""
     sc = scenario("localise", "cv-ift")
-    truth = make_truth(replace(sc, accel_std_m_s2=0.0), np.random.default_rng(5))
+    truth = make_truth(replace(sc, truth_accel_std_m_s2=0.0), np.random.default_rng(5))
     heading = np.unwrap(np.arctan2(truth.states[:, :, 3], truth.states[:, :, 2]), axis=0)
     turn = np.degrees(np.diff(heading, axis=0))  # (K, n_tags), ENU CCW positive
     sign = np.array([0.0, 1.0, -1.0])[truth.modes[1:]]

@@ -76,7 +76,8 @@ def test_demo_mission_completes_under_hostile_datagrams(tmp_path):
     assert result.end_reason == "all_localised"
     assert set(result.localised) == {"T1", "T2", "T3", "T4"}
     for tid, info in result.localised.items():
-        assert info["error_m"] < 40.0, (tid, info)
+        # the claim the operator acts on: the tag is inside the radius the GCS states
+        assert info["error_m"] <= info["radius_m"], (tid, info)
     assert sum(sent.values()) > 50
     # every hostile datagram landed in a reject counter; none was taken as a detection
     for reason in ("bad_json", "rssi_nan", "not_utf8", "unknown_tag"):
