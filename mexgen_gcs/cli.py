@@ -23,6 +23,12 @@ EXIT_BAD_INPUT = 2
 
 DEFAULT_CONNECT = "udpin://0.0.0.0:14540"
 METHODS = ("mexgen", "pim", "mc")
+#: experiment choices, spelled here so ``--help`` imports nothing heavy; tests/test_cli_choices.py
+#: checks them against experiments.scenario and core.reality, where they are defined
+EXPERIMENT_MODELS = ("static", "rw", "cv", "cv-ift", "cv-ift-mismatch")
+REALITIES = ("matched", "tx-power", "path-loss", "antenna", "shadowing", "fading", "terrain",
+             "compass", "field")
+ESTIMATORS = ("classic", "robust")
 
 #: subcommand -> "module:function" of its handler.
 HANDLERS: dict[str, str] = {
@@ -102,7 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("experiment", help="batch Monte Carlo runs reproducing the paper")
     p.add_argument("scenario", choices=("follow", "localise"))
-    p.add_argument("--model", choices=("rw", "cv", "cv-ift", "cv-ift-mismatch"), default="rw")
+    p.add_argument("--model", choices=EXPERIMENT_MODELS, default="rw",
+                   help="the objects' motion: static tags, or the paper's four models")
     p.add_argument("--methods", default="pim,mc8,mexgen", metavar="M1,M2",
                    help="comma-separated: pim, mc8 (MC-M with M=8), mexgen (MexGen-512)")
     p.add_argument("--starts", type=_positive_int, default=50, metavar="N",
@@ -117,6 +124,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preset", choices=("paper", "field"), default="paper",
                    help="paper: the paper's sensor (omnidirectional, every pulse heard) and "
                    "planner; field: the mission defaults (3 dB antenna, -60 dB sensitivity)")
+    p.add_argument("--reality", choices=REALITIES, default="matched",
+                   help="how the radio world differs from the mission's model "
+                   "(docs/localisation.md); default: matched")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="classic",
+                   help="classic: trusts the radio model (the paper's); robust: estimates each "
+                   "tag's power offset and path-loss exponent, shadowing, outliers")
     p.add_argument("--quick", action="store_true",
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")

@@ -12,6 +12,10 @@ datagrams carrying the receiver pose (lat/lon/alt_m AMSL/yaw_deg). Clutter: each
 each tag channel gets Poisson(``clutter_rate``) spurious detections, uniform in dB over the
 model's clutter range, plus the ``clutter`` fault's extra rate. Heartbeats listing every tag
 go out every second of sim time and at least once a wall second.
+Reality: with a ``sim.reality`` profile other than ``matched`` the receiver's power comes from
+one world drawn from that profile (:mod:`mexgen_gcs.core.reality`: transmit offsets, the
+exponent, an antenna pattern, shadowing, per-pulse fading, tag heights, a compass bias), not
+from the mission's model; the truth header records the drawn world.
 Faults: radio_silence (nothing sent), detection_dropout, clutter, clock_offset, gps_loss (no
 pose in the datagrams). The truth log records every pulse with its true power.
 """
@@ -21,11 +25,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from mexgen_gcs.core.motion import MotionModel
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.reality import TrueRadio, profile
 from mexgen_gcs.io.wire import RSSI_RANGE_DB, encode_detection, encode_heartbeat
 from sim.faults import FaultSchedule
 from sim.truth import TruthWriter
@@ -69,11 +75,13 @@ class RadioSim:
         unix_of: Callable[[float], float],
         rng: np.random.Generator,
         truth_step_s: float = 1.0,
+        world: TrueRadio | None = None,
     ) -> None:
         if not tags or not pulse_period_s > 0.0:
             raise ValueError("need at least one tag and pulse_period_s > 0")
         self.tags = tags
         self.radio = radio
+        self.world = world
         self.period_s = pulse_period_s
         self.faults = faults
         self.truth = truth
@@ -155,9 +163,18 @@ class RadioSim:
         tag = self.tags[i]
         xy = self._position(tag, t)[:2]
         rx = np.array([pose.east_m, pose.north_m, pose.up_m])
-        power = float(self.radio.power_db(xy, rx, math.radians(pose.yaw_deg)))
-        detected = bool(self.radio.detect(np.array(power), self._rng_detect))
-        rssi = float(self.radio.measure(np.array(power), self._rng_detect)) if detected else None
+        yaw = math.radians(pose.yaw_deg)
+        tag_z = 0.0
+        if self.world is None:
+            power = float(self.radio.power_db(xy, rx, yaw))
+            detected = bool(self.radio.detect(np.array(power), self._rng_detect))
+            rssi = (float(self.radio.measure(np.array(power), self._rng_detect)) if detected
+                    else None)
+        else:
+            tag_z = float(self.world.tag_height_m[i])
+            p, d, r = self.world.pulse(np.array(i), xy, rx, yaw, self._rng_detect)
+            power, detected = float(p), bool(d)
+            rssi = float(r) if detected else None
         dropped = detected and any(
             self._rng_detect.random() < f.probability
             for f in self.faults.active("detection_dropout"))
@@ -169,7 +186,7 @@ class RadioSim:
             x_m=round(float(xy[0]), 3), y_m=round(float(xy[1]), 3),
             rx_enu_m=[round(pose.east_m, 3), round(pose.north_m, 3), round(pose.up_m, 3)],
             rx_yaw_deg=round(pose.yaw_deg, 3),
-            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], 0.0]))), 3),
+            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], tag_z]))), 3),
             power_db=power, detected=detected, rssi_db=rssi, dropped=dropped, sent=send,
             t_sent=t_sent if send else None)
         out: list[bytes] = []
@@ -222,3 +239,25 @@ class RadioSim:
         rate = self._fault_rate()
         self._next_fault_clutter = (after_s + float(self._rng_clutter.exponential(1.0 / rate))
                                     if rate > 0.0 else math.inf)
+
+
+def reality_world(mission: Any, seed: int) -> TrueRadio | None:
+    """The radio world of ``sim.reality`` (None for matched), drawn from its own child of the
+    simulator's seed so the tags, pulses and noise of a seed stay what they were."""
+    name = mission.sim.reality
+    if name == "matched":
+        return None
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+    return profile(name).realise(mission.radio_model(), len(mission.tags), rng)
+
+
+def describe_world(world: TrueRadio | None) -> dict[str, Any] | None:
+    """The drawn world for the truth header (None for matched)."""
+    if world is None:
+        return None
+    return {"profile": world.profile.name, "tx_offset_db": world.tx_offset_db.tolist(),
+            "tag_height_m": world.tag_height_m.tolist(),
+            "path_loss_exponent": world.path_loss_exponent,
+            "compass_bias_deg": math.degrees(world.compass_bias_rad),
+            "antenna": world.profile.describe()["antenna"],
+            "shadowing_std_db": world.shadowing.std_db, "rician_k_db": world.profile.rician_k_db}

@@ -33,7 +33,7 @@ from pymavlink.dialects.v20 import common as mavlink
 
 from mexgen_gcs.config import Mission
 from sim.faults import Fault, FaultSchedule
-from sim.radios import RadioSim, ReceiverPose
+from sim.radios import RadioSim, ReceiverPose, describe_world, reality_world
 from sim.scenario import Address, build_tags
 from sim.truth import TruthWriter
 from sim.vehicle_link import PoseSample, VehicleEndpoint, VehicleTrack
@@ -97,7 +97,8 @@ class RadioRider:
         self.track = VehicleTrack(options.vehicle_sysid)
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
-                              self._unix_of, radio_rng)
+                              self._unix_of, radio_rng,
+                              world=reality_world(mission, self.seed))
         self._boot0: float | None = None
         self._bound: tuple[str, int] = ("", 0)
         self._sim_s = 0.0
@@ -311,7 +312,7 @@ class RadioRider:
             vehicle_home=(None if track.home is None else
                           {"lat_deg": track.home[0], "lon_deg": track.home[1],
                            "alt_m": track.home[2]}),
-            radio=list(o.radio),
+            radio=list(o.radio), reality=describe_world(self.radio.world),
             tags=[{"id": t.id, "freq_hz": t.freq_hz, "motion": t.motion,
                    "x_m": float(t.state[0, 0]), "y_m": float(t.state[0, 1])}
                   for t in self.radio.tags],

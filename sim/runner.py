@@ -29,7 +29,7 @@ from sim.clock import SimClock
 from sim.faults import Fault, FaultSchedule
 from sim.fence import Fence
 from sim.params import ParamTable
-from sim.radios import RadioSim, ReceiverPose
+from sim.radios import RadioSim, ReceiverPose, describe_world, reality_world
 from sim.scenario import (
     SimOptions,
     airframe_limits,
@@ -86,7 +86,8 @@ class Simulation:
                                       on_command=self._command_received)
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
-                              self.clock.unix_of, radio_rng)
+                              self.clock.unix_of, radio_rng,
+                              world=reality_world(mission, self.seed))
         self._radio_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._radio_sock.setblocking(False)
         self._next_vehicle_truth_s = 0.0
@@ -244,7 +245,7 @@ class Simulation:
                    "x_m": float(t.state[0, 0]), "y_m": float(t.state[0, 1])}
                   for t in self.radio.tags],
             faults=[f.describe() for f in self.faults.faults],
-            mission_text=m.source_text)
+            reality=describe_world(self.radio.world), mission_text=m.source_text)
 
     def _vehicle_truth(self) -> None:
         ap, s = self.autopilot, self.autopilot.state

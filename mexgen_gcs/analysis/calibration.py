@@ -48,6 +48,10 @@ PositionFn = Callable[[FloatArray], FloatArray]
 """times (K,) -> tag positions (K, 2) ENU."""
 
 
+TAG_PRIOR_FLOOR_DB = 0.5
+"""Least uncertainty given to a surveyed tag's P0 (antenna orientation, battery, weather)."""
+
+
 @dataclass(frozen=True, slots=True)
 class PathLossFit:
     """A fitted path-loss model and how well it is determined."""
@@ -89,6 +93,17 @@ class PathLossFit:
                 f"# standard errors: p0_db {self.p0_se_db:.2f} dB, path_loss_exponent "
                 f"{self.n_se:.3f}\n")
         return head + yaml.safe_dump({"radio": radio}, sort_keys=False)
+
+    def tag_block(self, tag_id: str, freq_hz: int, floor_db: float = TAG_PRIOR_FLOOR_DB) -> str:
+        """A mission ``tags:`` entry that carries this fit's P0 as the tag's own prior: a tag
+        measured before take-off needs no wide p0_std_db. Its std is the fit's standard error
+        combined with ``floor_db`` (what changes between the survey and the mission)."""
+        std = math.hypot(self.p0_se_db, floor_db)
+        entry = {"id": tag_id, "freq_hz": int(freq_hz), "p0_db": round(self.p0_db, 2),
+                 "p0_std_db": round(std, 2)}
+        return (f"# {tag_id} measured: its own received power as a tight prior (p0_std_db = "
+                f"standard error {self.p0_se_db:.2f} dB with a {floor_db:g} dB floor)\n"
+                + yaml.safe_dump({"tags": [entry]}, sort_keys=False, default_flow_style=None))
 
 
 def fit_path_loss(

@@ -199,6 +199,8 @@ def _calibrate(flights: list[Any], truths: list[Any], tag: str,
           f"(mission {radio.path_loss_exponent:g}), noise {fit.noise_std_db:.2f} dB (mission "
           f"{radio.noise_std_db:g})", file=sys.stderr)
     print(fit.radio_block(radio.model_dump()), end="")
+    if len(tags) == 1:
+        print(fit.tag_block(tags[0], flights[0].mission.tag(tags[0]).freq_hz), end="")
     return EXIT_OK
 
 

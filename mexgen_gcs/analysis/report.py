@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -153,7 +154,8 @@ def report_document(flight: FlightData, s: FlightSummary,
                "north (m)", f"{int(flight.mission.localisation.confidence * 100)}% radius (m)",
                "1-sigma major (m)", "existence"]
     if s.has_truth:
-        headers += ["error at localisation (m)", "final error (m)", "RMS tracking error (m)"]
+        headers += ["error at localisation (m)", "inside claimed radius", "final error (m)",
+                    "RMS tracking error (m)"]
     trows = []
     for t in s.tags:
         row = [t.tag_id, str(t.detections), fmt(t.localised_after_s),
@@ -161,14 +163,18 @@ def report_document(flight: FlightData, s: FlightSummary,
                fmt(t.final_north_m), fmt(t.final_radius_m), fmt(t.final_sigma_major_m),
                fmt(t.final_existence, 3)]
         if s.has_truth:
-            row += [fmt(t.error_at_localisation_m), fmt(t.final_error_m),
-                    fmt(t.tracking_rms_error_m)]
+            inside = t.inside_claimed_radius
+            row += [fmt(t.error_at_localisation_m),
+                    "–" if inside is None else ("yes" if inside else "NO"),
+                    fmt(t.final_error_m), fmt(t.tracking_rms_error_m)]
         trows.append(row)
     sec.table(headers, trows)
     sec.para("Position, radius and existence are the final estimate; 'localised after' is the "
              "time from airborne to the tag_localised event"
              + ("; errors are distances to the simulator's truth at that moment, and the RMS "
                 "tracking error is over every pulse of the flight." if s.has_truth else "."))
+    if s.has_truth:
+        sec.para(coverage_sentence(s.tags, flight.mission.localisation.confidence))
 
     sec = doc.section("Planner timing (wall ms per plan)")
     if s.timing:
@@ -199,3 +205,18 @@ def report_document(flight: FlightData, s: FlightSummary,
     sec.image(PLOTS["rssi"], "RSSI against distance to the estimate, with the fitted path loss")
     sec.image(PLOTS["timing"], "Planner wall time per stage")
     return doc
+
+
+def coverage_sentence(tags: Sequence[Any], confidence: float) -> str:
+    """How many localised tags were inside the radius claimed for them, with a 95 % Wilson
+    interval: the figure that says whether the localisation radius means what it says."""
+    from scipy.stats import binomtest
+
+    judged = [t.inside_claimed_radius for t in tags if t.inside_claimed_radius is not None]
+    if not judged:
+        return "Coverage: no tag was localised, so no claimed radius can be checked."
+    k, n = sum(judged), len(judged)
+    ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
+    return (f"Coverage: {k} of {n} localised tags were inside the radius claimed at "
+            f"localisation ({k / n:.0%}, 95 % interval {ci.low:.0%}-{ci.high:.0%}); the claim "
+            f"is {confidence:.0%}.")

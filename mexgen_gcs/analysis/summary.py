@@ -62,6 +62,9 @@ class TagSummary:
     tracking_rms_error_m: float | None
     """Root mean square distance between estimate and truth over all estimate records (the
     object-following metric)."""
+    inside_claimed_radius: bool | None = None
+    """Was the truth inside the radius claimed at localisation? None without truth or
+    without a localisation."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -245,7 +248,9 @@ def tag_summary(flight: FlightData, tag_id: str, truth: Truth | None) -> TagSumm
         final_lat_deg=fin["lat"], final_lon_deg=fin["lon"], final_radius_m=fin["r"],
         final_sigma_major_m=fin["sig"], final_existence=fin["q"],
         error_at_localisation_m=loc_fields["err"], final_error_m=fin["err"],
-        tracking_rms_error_m=rms)
+        tracking_rms_error_m=rms,
+        inside_claimed_radius=None if loc_fields["err"] is None or loc_fields["r"] is None
+        else bool(loc_fields["err"] <= loc_fields["r"]))
 
 
 def planner_timing(flight: FlightData) -> tuple[StageTiming, ...]:

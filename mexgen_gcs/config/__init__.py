@@ -8,9 +8,11 @@ from mexgen_gcs.config.checks import mission_warnings
 from mexgen_gcs.config.describe import describe, dump_resolved
 from mexgen_gcs.config.loader import MissionFileError, Problem, load_mission, parse_mission
 from mexgen_gcs.config.mission import Mission
+from mexgen_gcs.config.schema import CLASSIC_ESTIMATOR
 from mexgen_gcs.config.urls import UdpAddress, parse_udp_url
 
 __all__ = [
+    "CLASSIC_ESTIMATOR",
     "Mission",
     "MissionFileError",
     "Problem",

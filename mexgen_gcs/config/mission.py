@@ -36,6 +36,7 @@ from mexgen_gcs.core.bernoulli import FilterConfig
 from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import RadioUncertainty, TagRadioPrior
 
 
 class Mission(Section):
@@ -225,7 +226,23 @@ class Mission(Section):
 
     def radio_model(self) -> RadioModel:
         """The core radio model with this mission's parameters."""
-        return RadioModel(**self.radio.model_dump())
+        fields = RadioModel.__dataclass_fields__
+        return RadioModel(**{k: v for k, v in self.radio.model_dump().items() if k in fields})
+
+    def radio_uncertainty(self) -> RadioUncertainty:
+        """What the estimator does not know about the radio (radio section)."""
+        r = self.radio
+        return RadioUncertainty(
+            p0_std_db=r.p0_std_db, path_loss_exponent_std=r.path_loss_exponent_std,
+            shadowing_std_db=tuple(r.shadowing_std_db),
+            shadowing_distance_m=r.shadowing_distance_m,
+            model_error_std_db=tuple(r.model_error_std_db), outlier_prob=r.outlier_prob)
+
+    def tag_radio_priors(self) -> dict[str, TagRadioPrior]:
+        """Per-tag offsets about radio.p0_db from tags[].p0_db / p0_std_db (calibrations)."""
+        return {t.id: TagRadioPrior(0.0 if t.p0_db is None else t.p0_db - self.radio.p0_db,
+                                    t.p0_std_db)
+                for t in self.tags if t.p0_db is not None or t.p0_std_db is not None}
 
     def filter_motion_model(self) -> MotionModel:
         """The motion model the filter assumes (filter.motion and its parameters)."""
@@ -253,6 +270,7 @@ class Mission(Section):
             localised_radius_m=loc.radius_m,
             localised_confidence=loc.confidence,
             localised_min_existence=loc.min_existence,
+            radio_unknowns=self.radio_uncertainty(),
         )
 
     def sim_tag(self, tag_id: str) -> SimTag:

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import contextlib
 import ipaddress
-from typing import Annotated, Literal
+from collections.abc import Mapping
+from types import MappingProxyType
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
@@ -136,10 +138,37 @@ class TagSpec(Section):
     freq_hz: Int = Field(
         gt=0, le=100_000_000_000, description="Carrier frequency, Hz (e.g. 150100000)."
     )
+    p0_db: Float | None = Field(
+        None, ge=-200.0, le=100.0,
+        description="This tag's received power at radio.d0_m, dB, when measured before take-off "
+        "(e.g. from `mexgen-gcs analyze --calibrate`); omitted = radio.p0_db.",
+    )
+    p0_std_db: Float | None = Field(
+        None, ge=0.0, le=40.0,
+        description="Uncertainty of this tag's p0_db, dB; omitted = radio.p0_std_db.",
+    )
+
+
+def _hypotheses(value: Any) -> Any:
+    """Accept a single number x as the one hypothesis [x]."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return (value,)
+    return value
+
+
+CLASSIC_ESTIMATOR: Mapping[str, Any] = MappingProxyType({
+    "radio.p0_std_db": 0.0, "radio.path_loss_exponent_std": 0.0,
+    "radio.shadowing_std_db": [0.0], "radio.model_error_std_db": [0.0],
+    "radio.outlier_prob": 0.0})
+"""Dotted mission overrides for the classic estimator, which trusts the radio model exactly
+(the paper's simulations and the estimator of earlier versions)."""
 
 
 class RadioSection(Section):
-    """Radio measurement and detection model (fields of core RadioModel, same names)."""
+    """Radio measurement and detection model (the first fields are core RadioModel's, same
+    names), and what the estimator does not know about it (core RadioUncertainty). All of the
+    latter zero (shadowing and model error [0]) is the classic estimator that trusts the model
+    exactly; the defaults are chosen for the field (see missions/README.md)."""
 
     p0_db: Float = Field(-7.0, ge=-200.0, le=100.0,
                          description="Received power at the reference distance d0_m, dB.")
@@ -163,6 +192,30 @@ class RadioSection(Section):
                                   description="Lowest power of a clutter detection, dB.")
     clutter_max_db: Float = Field(0.0, ge=-300.0, le=100.0,
                                   description="Highest power of a clutter detection, dB.")
+    p0_std_db: Float = Field(
+        4.0, ge=0.0, le=40.0,
+        description="Prior std of each tag's received-power offset about p0_db, dB (collar "
+        "transmit power and antenna gain vary by several dB); 0 = known exactly.")
+    path_loss_exponent_std: Float = Field(
+        0.25, ge=0.0, le=5.0,
+        description="Prior std of the path-loss exponent about path_loss_exponent; 0 = known.")
+    shadowing_std_db: tuple[Annotated[Float, Field(ge=0.0, le=40.0)], ...] = Field(
+        (0.0, 2.0, 4.0), min_length=1, max_length=6,
+        description="Hypotheses about spatially correlated shadowing, dB (a number or a list); "
+        "the data select among them with model_error_std_db.")
+    shadowing_distance_m: Float = Field(
+        50.0, gt=0.0, le=10_000.0, description="Correlation distance of the shadowing, m.")
+    model_error_std_db: tuple[Annotated[Float, Field(ge=0.0, le=40.0)], ...] = Field(
+        (0.0, 3.0), min_length=1, max_length=6,
+        description="Hypotheses about uncorrelated model error (fading, antenna pattern), dB.")
+    outlier_prob: Float = Field(
+        0.05, ge=0.0, lt=1.0,
+        description="Probability that a detected power is an outlier (robust likelihood).")
+
+    @field_validator("shadowing_std_db", "model_error_std_db", mode="before")
+    @classmethod
+    def _lists(cls, value: Any) -> Any:
+        return _hypotheses(value)
 
     @model_validator(mode="after")
     def _clutter_range(self) -> RadioSection:

@@ -19,7 +19,11 @@ more = clutter too), ``kappa = clutter intensity per dB``::
     L(x) = 1 - pD(x) + sum_z pD(x) g(z | x) / kappa
     q_upd = q <L> / (1 - q + q <L>),    w_i <- w_i L(x_i)
 
-computed on the log scale so that no weight underflow produces a NaN. Resampling is
+computed on the log scale so that no weight underflow produces a NaN. With radio unknowns
+(``FilterConfig.radio_unknowns``) each particle also carries a Gaussian over the tag's power
+offset, the path-loss exponent and the shadowing (:mod:`core.radio_belief`): ``pD`` and ``g``
+are then marginal over them, ``g`` is an outlier mixture, and each detection updates the
+Gaussians by a Kalman step (a Rao-Blackwellised particle filter). Resampling is
 systematic when the effective sample size drops below a fraction of N, followed by
 roughening. Every random draw uses the generator handed to the constructor.
 """
@@ -27,7 +31,7 @@ roughening. Every random draw uses the generator handed to the constructor.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +39,19 @@ from numpy.typing import NDArray
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.motion import ModeArray, MotionModel
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import (
+    Predicted,
+    RadioBelief,
+    RadioUncertainty,
+    ShadowMemory,
+    TagRadioPrior,
+    kalman_update,
+    log_detected_density,
+    log_detection_probability,
+    predict_power,
+    predict_prewhitened,
+    shadow_conditioning,
+)
 from mexgen_gcs.core.resampling import (
     effective_sample_size,
     logsumexp,
@@ -46,8 +63,10 @@ from mexgen_gcs.errors import EstimationError
 
 FloatArray = NDArray[np.float64]
 
-_PD_CEIL = 1.0 - 1e-12
 _MIN_KAPPA = 1e-300
+LEVEL_CLAIM_MASS = 0.05
+"""A roughness level with at least this posterior probability must agree with a claimed
+localisation radius (about the reported position)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,6 +84,8 @@ class FilterConfig:
     (from the trace of the position covariance) is at most this."""
     localised_confidence: float = 0.95
     localised_min_existence: float = 0.5
+    radio_unknowns: RadioUncertainty = field(default_factory=RadioUncertainty)
+    """What the filter does not know about the radio (all zero: the classic model)."""
 
     def __post_init__(self) -> None:
         if self.n_particles < 1:
@@ -100,6 +121,10 @@ class TagEstimate:
     """Uncertainty radius at the configured confidence."""
     localised: bool
     ess: float
+    p0_offset_db: float = 0.0
+    """Estimated received-power offset of the tag about the mission's P0, dB."""
+    path_loss_exponent: float = math.nan
+    """Estimated path-loss exponent (the mission's when it is not estimated)."""
 
 
 class BernoulliFilter:
@@ -112,14 +137,23 @@ class BernoulliFilter:
         area: SearchArea,
         config: FilterConfig,
         rng: np.random.Generator,
+        tag_prior: TagRadioPrior | None = None,
     ) -> None:
         self.motion = motion
         self.radio = radio
         self.area = area
         self.config = config
         self.rng = rng
+        self.unknowns = config.radio_unknowns
+        self.tag_prior = tag_prior or TagRadioPrior()
         n = config.n_particles
         self.states, self.modes = self._birth(n)
+        self.states = np.ascontiguousarray(self.states)
+        self.radio_belief = self._radio_prior(n)
+        speed = float(getattr(motion, "speed_max_m_s", 0.0))
+        dist = self.unknowns.shadowing_distance_m
+        self.shadow_memory = ShadowMemory(math.inf if speed <= 0.0 else 3.0 * dist / speed)
+        self.t_s = 0.0
         self.log_w = np.full(n, -math.log(n))
         self.existence = config.initial_existence
         self.n_updates = 0
@@ -129,6 +163,11 @@ class BernoulliFilter:
 
     def _birth(self, n: int) -> tuple[FloatArray, ModeArray]:
         return self.motion.initial(self.area.sample_uniform(n, self.rng), self.rng)
+
+    def _radio_prior(self, n: int) -> RadioBelief | None:
+        if not self.unknowns.active and self.tag_prior.offset_db == 0.0:
+            return None
+        return RadioBelief.prior(n, self.radio, self.unknowns, self.tag_prior)
 
     def predict(self, dt_s: float) -> None:
         """Bernoulli prediction over dt_s seconds (birth mixing, survival, motion)."""
@@ -150,29 +189,106 @@ class BernoulliFilter:
                     self.states = self.states.copy()
                     self.modes = self.modes.copy()
                     self.states[reborn], self.modes[reborn] = self._birth(k)
+                    if self.radio_belief is not None:
+                        self.radio_belief.rebirth(reborn, self.radio, self.unknowns,
+                                                  self.tag_prior)
             self.existence = q_pred
         self.states, self.modes = self.motion.propagate(self.states, self.modes, dt_s, self.rng)
+        self.t_s += dt_s
 
     def update(self, z_db: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float) -> None:
         """Bernoulli update with one pulse period's measurements z_db (m,) (empty = missed
         detection) taken at receiver position rx_xyz (3,) ENU with heading rx_yaw_rad."""
         z = np.asarray(z_db, dtype=np.float64).reshape(-1)
-        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(rx_xyz)):
+        rx = np.asarray(rx_xyz, dtype=np.float64)
+        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(rx)):
             raise EstimationError("update needs finite measurements and receiver position")
-        power = self.radio.power_db(self.states[:, :2], np.asarray(rx_xyz), rx_yaw_rad)
-        log_l = bernoulli_log_likelihood(self.radio, power, z)
+        belief = self.radio_belief
+        xy = self.states[:, :2]
+        if belief is None:
+            pred = predict_power(self.radio, None, xy, rx, rx_yaw_rad)
+            log_l, _ = bernoulli_log_likelihood(self.radio, self.unknowns, pred, z,
+                                                self.radio.noise_var)
+        else:
+            log_l = self._robust_update(belief, z, rx, rx_yaw_rad)
         self.log_w, self.existence = bernoulli_update(self.log_w, self.existence, log_l)
         self.n_updates += 1
-        if effective_sample_size(self.log_w) < self.config.resample_ess_fraction * len(self.log_w):
-            self.resample()
+        self._resample_if_degenerate()
 
-    def resample(self) -> None:
-        """Systematic resampling to N equal weights, then roughening of the states."""
-        n = self.config.n_particles
-        idx = systematic_resample(self.log_w, n, self.rng)
-        self.states = roughen(self.states[idx], self.config.roughening_k, self.rng)
-        self.modes = self.modes[idx]
-        self.log_w = np.full(n, -math.log(n))
+    def _robust_update(self, belief: RadioBelief, z: FloatArray, rx: FloatArray,
+                       yaw: float) -> FloatArray:
+        """log L per particle with the radio unknowns (core.radio_belief), updating each
+        particle's Gaussian. One vectorised pass: only the shadowing conditioning differs
+        between roughness levels, and it is indexed by each particle's level."""
+        unc, radio, mem = self.unknowns, self.radio, self.shadow_memory
+        levels = np.asarray(unc.levels)  # (L, 2) shadowing std, model error std
+        lev = belief.level
+        idx, d_new = mem.neighbours(self.t_s, rx[:2], unc.shadowing_distance_m)
+        cond = [shadow_conditioning(mem, idx, d_new, sh * sh, radio.noise_var + me * me,
+                                    unc.shadowing_distance_m) for sh, me in levels]
+        beta = np.array([c[0] for c in cond]).reshape(len(cond), idx.size)[lev]  # (N, m)
+        r2 = np.array([c[1] for c in cond])[lev]  # (N,)
+        extra = (levels[:, 0] ** 2 + levels[:, 1] ** 2)[lev]
+        xy = self.states[:, :2]
+        marginal, pred = predict_prewhitened(radio, belief, xy, rx, yaw, mem, idx, beta)
+        z_t = z[None, :] - (beta @ mem.z_db[idx])[:, None] if idx.size else np.broadcast_to(
+            z, (xy.shape[0], z.size))
+        log_l, gains = bernoulli_log_likelihood(radio, unc, marginal, z_t, r2,
+                                                prewhitened=pred, extra_var=extra)
+        for j in range(z.size):
+            if j:  # the Gaussians moved: predict again for the next measurement
+                marginal, pred = predict_prewhitened(radio, belief, xy, rx, yaw, mem, idx, beta)
+            kalman_update(belief, pred, z_t[:, j], gains[:, j], r2)
+        if z.size:
+            w = np.exp(self.log_w)
+            for j in range(z.size):  # remember the pulses that are most likely the tag's
+                if float(w @ gains[:, j]) > 0.5:
+                    mem.add(self.t_s, rx, yaw, float(z[j]))
+        return log_l
+
+    @property
+    def n_levels(self) -> int:
+        """Roughness hypotheses (particle slot i belongs to level i % n_levels)."""
+        return 1 if self.radio_belief is None else len(self.unknowns.levels)
+
+    def _resample_if_degenerate(self) -> None:
+        frac = self.config.resample_ess_fraction
+        step = self.n_levels
+        if step == 1:
+            if effective_sample_size(self.log_w) < frac * self.log_w.shape[0]:
+                self.resample()
+            return
+        # per-level ESS = (sum w)^2 / sum w^2 within each level's slots
+        w = np.exp(self.log_w - self.log_w.max())
+        lev = np.arange(w.shape[0]) % step
+        s1 = np.bincount(lev, weights=w, minlength=step)
+        s2 = np.bincount(lev, weights=w * w, minlength=step)
+        count = np.bincount(lev, minlength=step)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ess = s1 * s1 / s2
+        for level in np.flatnonzero(ess < frac * count):  # NaN (a dead level) never resamples
+            self.resample(int(level))
+
+    def resample(self, level: int | None = None) -> None:
+        """Systematic resampling to equal weights, then roughening of the states.
+
+        With several roughness levels each level is resampled within its own particle slots
+        (``level::n_levels``) and keeps its total weight, its posterior probability: a level
+        is never crowded out by resampling, only by the evidence (a bank of filters, one per
+        level, weighted by their marginal likelihoods). ``level`` None: every level."""
+        step = self.n_levels
+        for lev in range(step) if level is None else (level,):
+            sl = slice(lev, None, step)
+            lw = self.log_w[sl]
+            norm, log_mass = normalise_log_weights(lw)
+            m = lw.shape[0]
+            idx = systematic_resample(norm, m, self.rng)
+            self.states[sl] = roughen(self.states[sl][idx], self.config.roughening_k, self.rng)
+            self.modes[sl] = self.modes[sl][idx]
+            if self.radio_belief is not None:
+                self.radio_belief.permute(sl, idx)
+            self.log_w[sl] = (log_mass if np.isfinite(log_mass) else -math.log(step)) - math.log(m)
+        self.log_w, _ = normalise_log_weights(self.log_w)
         self.n_resamples += 1
 
     # -- outputs ----------------------------------------------------------------------------
@@ -184,13 +300,26 @@ class BernoulliFilter:
         cov = (d * w[:, None]).T @ d
         tr = float(cov[0, 0] + cov[1, 1])
         radius = self.config.radius_from_trace(tr)
+        if self.n_levels > 1:  # the claim must hold under every plausible roughness level
+            lev = np.arange(w.shape[0]) % self.n_levels
+            mass = np.bincount(lev, weights=w, minlength=self.n_levels)
+            spread = np.bincount(lev, weights=w * (d * d).sum(axis=1), minlength=self.n_levels)
+            plausible = mass >= LEVEL_CLAIM_MASS
+            if plausible.any():
+                tr_l = float((spread[plausible] / mass[plausible]).max())
+                radius = max(radius, self.config.radius_from_trace(tr_l))
         localised = (
             radius <= self.config.localised_radius_m
             and self.existence >= self.config.localised_min_existence
         )
+        if self.radio_belief is None:
+            offset, exponent = self.tag_prior.offset_db, self.radio.path_loss_exponent
+        else:
+            offset, exponent = (float(v) for v in w @ self.radio_belief.mean)
         return TagEstimate(
             existence=float(self.existence), mean=mean, cov_pos=cov, trace_pos_m2=tr,
             radius_m=radius, localised=localised, ess=effective_sample_size(self.log_w),
+            p0_offset_db=offset, path_loss_exponent=exponent,
         )
 
     def sample(self, n: int, rng: np.random.Generator) -> tuple[FloatArray, ModeArray]:
@@ -200,22 +329,53 @@ class BernoulliFilter:
         idx = systematic_resample(self.log_w, n, rng)
         return self.states[idx], self.modes[idx]
 
+    def sample_planning(self, n: int, rng: np.random.Generator
+                        ) -> tuple[FloatArray, ModeArray, FloatArray | None, FloatArray | None]:
+        """n equal-weight particles for the planner with, when the radio is uncertain, one
+        draw of each particle's (offset dB, exponent) from its Gaussian: states (n, 4), modes
+        (n,), offsets (n,) | None, exponents (n,) | None. The shadowing is left out: it
+        decorrelates along the planned path (the planner adds its variance to the noise)."""
+        if n < 1:
+            raise EstimationError(f"cannot sample {n} particles; ask for at least 1")
+        idx = systematic_resample(self.log_w, n, rng)
+        belief = self.radio_belief
+        if belief is None:
+            offset = None if self.tag_prior.offset_db == 0.0 else np.full(
+                n, self.tag_prior.offset_db)
+            return self.states[idx], self.modes[idx], offset, None
+        mu, c = belief.mean[idx], belief.cov[idx]
+        g = rng.standard_normal((n, 2))
+        # Cholesky of [[bb, bn], [bn, nn]]
+        l11 = np.sqrt(np.maximum(c[:, 0], 0.0))
+        l21 = np.divide(c[:, 1], l11, out=np.zeros(n), where=l11 > 0.0)
+        l22 = np.sqrt(np.maximum(c[:, 2] - l21 * l21, 0.0))
+        offset = mu[:, 0] + l11 * g[:, 0]
+        exponent = np.maximum(mu[:, 1] + l21 * g[:, 0] + l22 * g[:, 1], 0.1)
+        return self.states[idx], self.modes[idx], offset, exponent
+
 
 def bernoulli_log_likelihood(
-    radio: RadioModel, power_db: FloatArray, z_db: FloatArray
-) -> FloatArray:
-    """log L(x) for each particle: power (N,) noiseless predictions, z (m,) measurements.
+    radio: RadioModel, unknowns: RadioUncertainty, pred: Predicted, z_db: FloatArray,
+    noise_var: FloatArray | float | None = None, *, prewhitened: Predicted | None = None,
+    extra_var: FloatArray | float = 0.0,
+) -> tuple[FloatArray, FloatArray]:
+    """log L(x) (N,) for each particle and the probability (N, m) that each z is that
+    particle's inlier detection (the weight of its Kalman step).
 
-    L = 1 - pD + pD * sum_z g(z|x) / kappa. Finite for every input (pD is kept below 1).
+    L = 1 - pD + pD * sum_z g(z|x) / kappa, finite everywhere. ``pred``: each particle's
+    predicted power (pD from it, widened by ``extra_var``); the density of z uses
+    ``prewhitened`` (z then being the prewhitened measurements) if given, else ``pred``, with
+    noise variance ``noise_var`` (default the radio's).
     """
-    pd = np.minimum(radio.detection_probability(power_db), _PD_CEIL)
-    log_miss = np.log1p(-pd)
+    log_pd, log_miss = log_detection_probability(radio, pred, extra_var)
     if z_db.size == 0:
-        return log_miss
+        return log_miss, np.empty((log_miss.shape[0], 0))
     log_kappa = math.log(max(radio.clutter_density, _MIN_KAPPA))
-    ll = radio.log_likelihood(z_db[None, :], power_db[:, None])  # (N, m)
-    log_det = np.log(np.maximum(pd, 1e-300)) + logsumexp(ll, axis=1) - log_kappa
-    return np.logaddexp(log_miss, log_det)
+    r = radio.noise_var if noise_var is None else noise_var
+    log_g, inlier = log_detected_density(radio, unknowns, prewhitened or pred, z_db, r)
+    terms = log_pd[:, None] + log_g - log_kappa
+    log_l = np.logaddexp(log_miss, logsumexp(terms, axis=1))
+    return log_l, np.exp(terms - log_l[:, None]) * inlier
 
 
 def bernoulli_update(

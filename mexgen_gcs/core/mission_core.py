@@ -18,7 +18,7 @@ within the tight radius (a flight leaves it unset and is done at that point).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -30,6 +30,7 @@ from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, TagEstimate
 from mexgen_gcs.core.motion import MotionModel
 from mexgen_gcs.core.planner import TagBelief, VehicleState
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import TagRadioPrior
 
 FloatArray = NDArray[np.float64]
 MissionKind = Literal["localise", "follow"]
@@ -99,6 +100,7 @@ class MissionCore:
         follow_tag: str | None = None,
         planning_particles: int = 1000,
         t0: float = 0.0,
+        tag_priors: Mapping[str, TagRadioPrior] | None = None,
         tight_radius_m: float | None = None,
     ) -> None:
         if not tag_ids:
@@ -117,7 +119,8 @@ class MissionCore:
         # one child generator per tag: adding a tag does not change the others' draws
         children = rng.spawn(len(self.tag_ids))
         self.filters = {
-            tid: BernoulliFilter(motion, radio, area, filter_config, child)
+            tid: BernoulliFilter(motion, radio, area, filter_config, child,
+                                 (tag_priors or {}).get(tid))
             for tid, child in zip(self.tag_ids, children, strict=True)
         }
         self.localised: dict[str, Localised] = {}
@@ -226,8 +229,9 @@ class MissionCore:
         beliefs = []
         for tid in targets:
             f = self.filters[tid]
-            states, modes = f.sample(self.planning_particles, self.rng)
-            beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence)))
+            states, modes, offset, exponent = f.sample_planning(self.planning_particles, self.rng)
+            beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence),
+                                     offset, exponent))
         return PlanRequest(t, vehicle, tuple(beliefs))
 
     def all_localised(self) -> bool:

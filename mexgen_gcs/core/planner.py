@@ -180,6 +180,10 @@ class TagBelief:
     """The motion model the tag's filter assumes."""
     existence: float = 1.0
     """The filter's existence probability (not used by the planner; carried for the log)."""
+    offset_db: FloatArray | None = None
+    """(N,) each particle's received-power offset about the model's P0 (None: 0)."""
+    exponent: FloatArray | None = None
+    """(N,) each particle's path-loss exponent (None: the model's)."""
 
 
 class PlanningVehicle(Protocol):

@@ -31,12 +31,16 @@ def power_grid(
     rx_yaw_rad: Float32Array,
     out: Float32Array,
     scratch: Sequence[Float32Array],
+    offset_db: Float32Array | None = None,
+    exponent: Float32Array | None = None,
 ) -> Float32Array:
     """P(x, u) for every pair that broadcasts, written into ``out``.
 
     tag_xy: (..., 2) tag east/north; rx_xyz: (..., 3) receiver east/north/up; rx_yaw_rad:
     (...); all broadcast to ``out.shape``. ``scratch``: three float32 buffers of
-    ``out.shape``. Returns ``out``. About 20 passes over ``out``, no allocation of its size.
+    ``out.shape``. ``offset_db``, ``exponent``: optional per-particle received-power offsets
+    (added to P0) and path-loss exponents (replacing the model's), broadcasting to ``out``.
+    Returns ``out``. About 20 passes over ``out``, no allocation of its size.
     """
     dx, dy, t = scratch[0], scratch[1], scratch[2]
     np.subtract(tag_xy[..., 0], rx_xyz[..., 0], out=dx)
@@ -62,10 +66,18 @@ def power_grid(
         dx -= out
         np.sqrt(t, out=dy)
         dx /= dy
-    # p0 - 10 n log10(distance / d0) = p0 + 10 n log10(d0) - 5 n log10(distance^2)
+    # p0 - 10 n log10(distance / d0) = p0 - 5 n (log10(distance^2) - 2 log10(d0))
     np.log10(t, out=out)
-    out *= np.float32(-5.0 * radio.path_loss_exponent)
-    out += np.float32(radio.p0_db + 10.0 * radio.path_loss_exponent * math.log10(radio.d0_m))
+    if exponent is None:
+        out *= np.float32(-5.0 * radio.path_loss_exponent)
+        out += np.float32(radio.p0_db + 10.0 * radio.path_loss_exponent * math.log10(radio.d0_m))
+    else:
+        out -= np.float32(2.0 * math.log10(radio.d0_m))
+        out *= np.float32(-5.0)
+        out *= exponent
+        out += np.float32(radio.p0_db)
+    if offset_db is not None:
+        out += offset_db
     if radio.front_back_db > 0.0:
         out += dx
     return out

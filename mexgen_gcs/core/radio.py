@@ -95,6 +95,34 @@ class RadioModel:
 
     # -- noiseless model --------------------------------------------------------------------
 
+    def geometry(
+        self,
+        tag_xy: FloatArray,
+        rx_xyz: FloatArray,
+        rx_yaw_rad: FloatArray | float,
+        tag_z: FloatArray | float = 0.0,
+    ) -> tuple[FloatArray, FloatArray]:
+        """The two pose-dependent terms of the power, ``P = p0 + n * l + g``: the exponent's
+        regressor ``l = -10 log10(max(d, d_min) / d0)`` and the antenna gain ``g`` (dB).
+
+        Shapes as :meth:`power_db`; returns two (...) float64 arrays.
+        """
+        dx = tag_xy[..., 0] - rx_xyz[..., 0]
+        dy = tag_xy[..., 1] - rx_xyz[..., 1]
+        dz = tag_z - rx_xyz[..., 2]
+        horiz2 = dx * dx + dy * dy
+        dist = np.sqrt(np.maximum(horiz2 + dz * dz, self.min_distance_m**2))
+        log_term = -10.0 * np.log10(dist / self.d0_m)
+        if self.front_back_db > 0.0:
+            # cos(bearing - yaw) * cos(elev) = (dx sin(yaw) + dy cos(yaw)) / dist
+            # (compass bearing: east = sin, north = cos); finite when horiz == 0.
+            cos_rel_times_cos_elev = (dx * np.sin(rx_yaw_rad) + dy * np.cos(rx_yaw_rad)) / dist
+            cos_elev = np.sqrt(horiz2) / dist
+            gain = 0.5 * self.front_back_db * (cos_rel_times_cos_elev - cos_elev)
+        else:
+            gain = np.zeros_like(log_term)
+        return log_term, gain
+
     def power_db(
         self,
         tag_xy: FloatArray,
@@ -107,20 +135,8 @@ class RadioModel:
         tag_xy: (..., 2) tag east/north; rx_xyz: (..., 3) receiver east/north/up;
         rx_yaw_rad: (...) heading. All broadcast against each other; returns (...) float64.
         """
-        dx = tag_xy[..., 0] - rx_xyz[..., 0]
-        dy = tag_xy[..., 1] - rx_xyz[..., 1]
-        dz = tag_z - rx_xyz[..., 2]
-        horiz2 = dx * dx + dy * dy
-        dist2 = horiz2 + dz * dz
-        dist = np.sqrt(np.maximum(dist2, self.min_distance_m**2))
-        power = self.p0_db - 10.0 * self.path_loss_exponent * np.log10(dist / self.d0_m)
-        if self.front_back_db > 0.0:
-            # cos(bearing - yaw) * cos(elev) = (dx sin(yaw) + dy cos(yaw)) / dist
-            # (compass bearing: east = sin, north = cos); finite when horiz == 0.
-            cos_rel_times_cos_elev = (dx * np.sin(rx_yaw_rad) + dy * np.cos(rx_yaw_rad)) / dist
-            cos_elev = np.sqrt(horiz2) / dist
-            power = power + 0.5 * self.front_back_db * (cos_rel_times_cos_elev - cos_elev)
-        return power
+        log_term, gain = self.geometry(tag_xy, rx_xyz, rx_yaw_rad, tag_z)
+        return self.p0_db + self.path_loss_exponent * log_term + gain
 
     def detection_probability(self, power_db: FloatArray) -> FloatArray:
         """pD given the noiseless power; (...) -> (...) in [0, pd_max]."""

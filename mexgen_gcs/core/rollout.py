@@ -153,6 +153,7 @@ def rollout_gains(
             state, mode = b.motion.propagate(state, mode, step_s, rng)
             xy[k, i, 0, 0, :n] = state[:, :2]
     xy[..., n:, :] = xy[..., :1, :]
+    offset, exponent = _radio_draws(beliefs, n, n_pad, radio)
     t1 = clock()
 
     rx = np.empty((steps, 1, n_act, 1, 3), dtype=np.float32)  # receiver pose per step, action
@@ -193,7 +194,7 @@ def rollout_gains(
             ks = slice(k, k + chunk)
             c = len(range(steps)[ks])
             power_grid(radio, xy[ks], rx[ks, ..., None, :], yaw_grid, power[:c],
-                       [g[:c] for g in grid_scratch])
+                       [g[:c] for g in grid_scratch], offset, exponent)
             # the table index stays in lut_scratch[1] for this chunk's miss lookups
             idx = table.index(power[:c], (lut_scratch[0][:c], lut_scratch[1][:c]),
                               bounded=True)
@@ -210,7 +211,7 @@ def rollout_gains(
             positions_m=xy[k],
             power_db=power[j],
             log_pd=log_pd[j],
-            mean_power=lambda p, rx_k=rx_k: radio.power_db(p, rx_k, yaw),
+            mean_power=lambda p, rx_k=rx_k: _mean_power(radio, p, rx_k, yaw, offset, exponent),
             detection_probability=radio.detection_probability,
             noise_std_db=radio.noise_std_db,
             scratch=ws,
@@ -265,6 +266,37 @@ def rollout_gains(
     timing["update"] += update_s
     timing["reward"] += reward_s
     return value.mean(axis=2)
+
+
+def _radio_draws(beliefs: Sequence[PlanningBelief], n: int, n_pad: int, radio: RadioModel
+                 ) -> tuple[Float32Array | None, Float32Array | None]:
+    """Per-particle offsets and exponents of the beliefs as (T, 1, 1, N') float32 grids
+    (None when no belief carries them)."""
+    offs = [getattr(b, "offset_db", None) for b in beliefs]
+    exps = [getattr(b, "exponent", None) for b in beliefs]
+    out: list[Float32Array | None] = []
+    for vals, default in ((offs, 0.0), (exps, radio.path_loss_exponent)):
+        if all(v is None for v in vals):
+            out.append(None)
+            continue
+        grid = np.full((len(beliefs), 1, 1, n_pad), default, dtype=np.float32)
+        for i, v in enumerate(vals):
+            if v is not None:
+                grid[i, 0, 0, :n] = v
+                grid[i, 0, 0, n:] = v[0]
+        out.append(grid)
+    return out[0], out[1]
+
+
+def _mean_power(radio: RadioModel, pos: FloatArray, rx: FloatArray, yaw: FloatArray,
+                offset: Float32Array | None, exponent: Float32Array | None) -> FloatArray:
+    """PIM's noiseless power at mean positions (T, A, R, 2) with the mean radio unknowns."""
+    if offset is None and exponent is None:
+        return radio.power_db(pos, rx, yaw)
+    log_term, gain = radio.geometry(pos, rx, yaw)
+    n = radio.path_loss_exponent if exponent is None else exponent.mean(axis=-1)
+    b = 0.0 if offset is None else offset.mean(axis=-1)
+    return radio.p0_db + b + n * log_term + gain
 
 
 def _uncertain(p_detect: Float32Array) -> bool:

@@ -104,6 +104,10 @@ def _command(args: argparse.Namespace) -> str:
         parts += ["--workers", str(args.workers)]
     if args.scheduler:
         parts += ["--scheduler", args.scheduler]
+    for flag, default in (("reality", "matched"), ("estimator", "classic")):
+        value = getattr(args, flag, default)
+        if value != default:
+            parts += [f"--{flag}", value]
     if args.quick:
         parts.append("--quick")
     return shlex.join(parts)
@@ -115,7 +119,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     (rerun the same command to resume)."""
     methods = parse_methods(args.methods)
     sc = scenario(args.scenario, args.model, quick=bool(args.quick),
-                  preset=getattr(args, "preset", "paper"))
+                  preset=getattr(args, "preset", "paper"),
+                  reality=getattr(args, "reality", "matched"),
+                  estimator=getattr(args, "estimator", "classic"))
     try:
         result = run_experiment(sc, methods, starts=args.starts, reps=args.reps,
                                 seed=args.seed, out_dir=args.out, workers=args.workers,

@@ -39,7 +39,7 @@ from mexgen_gcs.core.mission_core import Localised, MissionCore
 from mexgen_gcs.core.planner import Planner, VehicleState
 from mexgen_gcs.experiments.scenario import Scenario, method_config, mission_for
 from mexgen_gcs.experiments.seeds import run_seeds
-from mexgen_gcs.experiments.world import PointMass, RadioWorld, truth_for
+from mexgen_gcs.experiments.world import PointMass, RadioWorld, reality_for, truth_for
 from mexgen_gcs.mission.guidance import velocity_setpoint
 from mexgen_gcs.mission.planning import planner_config
 
@@ -53,8 +53,11 @@ COLUMNS = (
     "sim_s", "wall_s", "cpu_s", "plans", "plan_ms_median", "detections",
     "radius_m", "tight_radius_m", "tight_success", "tight_time_s", "tight_n_localised",
     "tight_error_m", "tight_errors_m", "tight_localised_t_s",
+    "radii_m", "inside", "tight_radii_m", "tight_inside",
 )
-"""runs.csv columns (format 2: format 1 had the first 24). Localise fills success..
+"""runs.csv columns (format 3; format 2 had the first 32, format 1 the first 24). ``radii_m``:
+the 95 % radius each tag claimed when it was localised; ``inside``: how many localised tags
+lay inside it (the coverage of the claim). Localise fills success..
 localised_t_s and radius_m..tight_localised_t_s (the same at the tight radius), follow
 error_mean_m..trace_final_m2; the rest is common. ``*errors_m`` and ``*localised_t_s`` hold one
 value per tag, ';'-separated (empty where a tag was not localised)."""
@@ -110,7 +113,8 @@ def run_one(spec: RunSpec) -> RunResult:
                      outcome=sc.planner_outcome)  # type: ignore[arg-type]
     planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]
-    radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio))
+    radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio),
+                       reality_for(sc, radio_model, spec.seed, spec.start))
     vehicle = PointMass(0.0, 0.0, sc.alt_m, sc.speed_m_s, sc.max_accel_m_s2)
     tag_ids = core.tag_ids
     listening = list(tag_ids)
@@ -138,6 +142,8 @@ def run_one(spec: RunSpec) -> RunResult:
     trace_m2 = np.full((steps, sc.n_tags), np.nan)
     localised_err: dict[str, float] = {}
     tight_err: dict[str, float] = {}
+    claimed: dict[str, float] = {}
+    tight_claimed: dict[str, float] = {}
     detections = 0
     done_t: float | None = None
     tight_t: float | None = None
@@ -168,8 +174,10 @@ def run_one(spec: RunSpec) -> RunResult:
             trace_m2[i, j] = est.trace_pos_m2
         for rec in report.newly_localised:
             localised_err[rec.tag_id] = error_m[i, tag_ids.index(rec.tag_id)]
+            claimed[rec.tag_id] = rec.estimate.radius_m
         for rec in report.newly_tight:
             tight_err[rec.tag_id] = error_m[i, tag_ids.index(rec.tag_id)]
+            tight_claimed[rec.tag_id] = rec.estimate.radius_m
         if sc.kind == "localise" and done_t is None and core.all_localised():
             done_t = t
         if sc.kind == "localise" and core.all_tight():
@@ -180,12 +188,14 @@ def run_one(spec: RunSpec) -> RunResult:
             heading_deg = replan(t)
             next_plan_t += sc.replan_interval_s
     n = k
-    row = _row(spec, truth.digest(), core, localised_err, done_t, error_m[:n], trace_m2[:n],
+    row = _row(spec, truth.digest(), core, (localised_err, claimed), done_t, error_m[:n],
+               trace_m2[:n],
                sim_s=float(t_s[n - 1]), wall_s=time.perf_counter() - wall0,
                cpu_s=time.process_time() - cpu0, plan_s=plan_s,
                detections=detections)
     if sc.kind == "localise":
-        row.update(_reading(core.tag_ids, core.tight, tight_err, tight_t, "tight_"),
+        row.update(_reading(core.tag_ids, core.tight, (tight_err, tight_claimed), tight_t,
+                            "tight_"),
                    radius_m=_num(sc.localised_radius_m),
                    tight_radius_m=_num(sc.tight_radius_m))
     series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
@@ -201,11 +211,16 @@ def _num(x: float | None) -> str:
 
 
 def _reading(tag_ids: tuple[str, ...], localised: dict[str, Localised],
-             errors: dict[str, float], done_t: float | None, prefix: str = "") -> dict[str, str]:
-    """The localisation columns of one radius: success, time, count, mean and per-tag errors
-    and times (column names with ``prefix``)."""
+             errors_radii: tuple[dict[str, float], dict[str, float]], done_t: float | None,
+             prefix: str = "") -> dict[str, str]:
+    """The localisation columns of one radius: success, time, count, mean and per-tag errors,
+    times and claimed radii, and how many tags lay inside their claim (``prefix``ed names)."""
+    errors, radii = errors_radii
     errs = [errors[t] for t in tag_ids if t in errors]
+    inside = sum(errors[t] <= radii[t] for t in tag_ids if t in errors and t in radii)
     return {
+        f"{prefix}radii_m": ";".join(_num(radii.get(t)) for t in tag_ids),
+        f"{prefix}inside": str(inside),
         f"{prefix}success": "1" if done_t is not None else "0",
         f"{prefix}time_s": _num(done_t),
         f"{prefix}n_localised": str(len(localised)),
@@ -216,9 +231,10 @@ def _reading(tag_ids: tuple[str, ...], localised: dict[str, Localised],
     }
 
 
-def _row(spec: RunSpec, digest: str, core: MissionCore, localised_err: dict[str, float],
-         done_t: float | None, error_m: FloatArray, trace_m2: FloatArray, *, sim_s: float,
-         wall_s: float, cpu_s: float, plan_s: list[float], detections: int) -> dict[str, str]:
+def _row(spec: RunSpec, digest: str, core: MissionCore,
+         localised_err: tuple[dict[str, float], dict[str, float]], done_t: float | None,
+         error_m: FloatArray, trace_m2: FloatArray, *, sim_s: float, wall_s: float,
+         cpu_s: float, plan_s: list[float], detections: int) -> dict[str, str]:
     sc = spec.scenario
     row = dict.fromkeys(COLUMNS, "")
     row.update(scenario=sc.kind, preset=sc.label, seed=str(spec.seed), model=sc.model,

@@ -54,17 +54,21 @@ from typing import Any, Literal
 
 import yaml
 
-from mexgen_gcs.config import Mission, parse_mission
+from mexgen_gcs.config import CLASSIC_ESTIMATOR, Mission, parse_mission
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.motion import PAPER_TRANSITION
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.reality import PROFILES
 from mexgen_gcs.errors import ConfigError
 
 ScenarioKind = Literal["follow", "localise"]
-ModelName = Literal["rw", "cv", "cv-ift", "cv-ift-mismatch"]
+ModelName = Literal["static", "rw", "cv", "cv-ift", "cv-ift-mismatch"]
 PresetName = Literal["paper", "field"]
 
-MODELS: tuple[ModelName, ...] = ("rw", "cv", "cv-ift", "cv-ift-mismatch")
+MODELS: tuple[ModelName, ...] = ("static", "rw", "cv", "cv-ift", "cv-ift-mismatch")
+"""``static``: tags that do not move (issue 13's localisation studies); the others are the
+paper's four models."""
+ESTIMATORS = ("classic", "robust")
 PRESETS: tuple[PresetName, ...] = ("paper", "field")
 
 PAPER_SENSITIVITY_DB = -120.0
@@ -81,6 +85,7 @@ METHODS: dict[str, tuple[str, str]] = {
 
 #: model -> (truth motion, the motion model the filter assumes)
 _MODEL_MOTION: dict[str, tuple[str, str]] = {
+    "static": ("static", "static"),
     "rw": ("rw", "rw"),
     "cv": ("cv", "cv"),
     "cv-ift": ("cv-ift", "cv-ift"),
@@ -144,6 +149,13 @@ class Scenario:
     """core PlannerConfig.reach: stretch the look-ahead to reach a far tag."""
     planner_outcome: str = "pooled"
     """core PlannerConfig.outcome: how an uncertain detect/miss outcome is weighed."""
+    reality: str = "matched"
+    """The radio world's reality profile (core.reality.PROFILES): how it differs from the
+    mission's model. "matched" is the model itself."""
+    estimator: str = "classic"
+    """"classic": the filter trusts the radio model exactly (the paper's simulations);
+    "robust": the mission defaults' radio unknowns (power offset and path-loss exponent per
+    tag, shadowing and model-error hypotheses, outliers; docs/localisation.md)."""
 
     @property
     def label(self) -> str:
@@ -181,8 +193,15 @@ class Scenario:
 
 
 def scenario(kind: ScenarioKind, model: ModelName, quick: bool = False,
-             preset: PresetName = "paper") -> Scenario:
-    """The settings of a scenario, model and preset; ``quick`` shortens everything (smoke)."""
+             preset: PresetName = "paper", *, reality: str = "matched",
+             estimator: str = "classic") -> Scenario:
+    """The settings of a scenario, model and preset; ``quick`` shortens everything (smoke);
+    ``reality`` the radio world's profile, ``estimator`` classic or robust."""
+    if reality not in PROFILES:
+        raise ConfigError(f"unknown reality {reality!r}; expected one of {', '.join(PROFILES)}")
+    if estimator not in ESTIMATORS:
+        raise ConfigError(f"unknown estimator {estimator!r}; expected one of "
+                          f"{', '.join(ESTIMATORS)}")
     if model not in MODELS:
         raise ConfigError(f"unknown model {model!r}; expected one of {', '.join(MODELS)}")
     if preset not in PRESETS:
@@ -203,6 +222,7 @@ def scenario(kind: ScenarioKind, model: ModelName, quick: bool = False,
         sc = replace(sc, front_back_db=mission.front_back_db,
                      sensitivity_db=mission.sensitivity_db,
                      detection_spread_db=mission.detection_spread_db, pd_max=mission.pd_max)
+    sc = replace(sc, reality=reality, estimator=estimator)
     if quick:
         sc = replace(sc, quick=True, duration_s=40.0, min_inside_s=min(sc.min_inside_s, 40.0),
                      lookahead_s=5.0, filter_particles=400, planning_particles=200,
@@ -309,6 +329,12 @@ def mission_yaml(sc: Scenario, method: str) -> str:
     }
     if sc.kind == "follow":
         doc["follow"] = {"tag": sc.tag_ids[0], "duration_s": sc.duration_s}
+    if sc.estimator == "classic":
+        for dotted, value in CLASSIC_ESTIMATOR.items():
+            section, key = dotted.split(".")
+            doc[section][key] = value
+    elif sc.estimator not in ESTIMATORS:
+        raise ConfigError(f"unknown estimator {sc.estimator!r}; expected classic or robust")
     return yaml.safe_dump(doc, sort_keys=False)
 
 

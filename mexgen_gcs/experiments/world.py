@@ -13,9 +13,12 @@ velocity direction (sin h, cos h) (east, north).
   the speed and acceleration limits (velocity moves straight towards the command at
   ``max_accel``, the model the planner's paths assume), yawing to the commanded heading.
 - Radio: every pulse, each tag's noiseless power (``RadioModel.power_db``) at the receiver's
-  pose, a detection draw, a noise draw and Poisson clutter. The number of random draws per
-  pulse does not depend on where the vehicle is, so every method sees the same radio noise
-  stream for the same seeds (common random numbers).
+  pose, a detection draw, a noise draw and Poisson clutter. With a reality profile other than
+  ``matched`` the power comes from a world drawn from it (``core.reality.TrueRadio``: tag
+  offsets, exponent, antenna, shadowing, fading, tag heights, compass bias), drawn once per
+  start (``reality_seed``) so every method and estimator meets the same world. The number
+  of random draws per pulse does not depend on where the vehicle is, so every method sees
+  the same radio noise stream for the same seeds (common random numbers).
 """
 
 from __future__ import annotations
@@ -30,9 +33,10 @@ from numpy.typing import NDArray
 
 from mexgen_gcs.core.motion import CvIft, MotionModel, make_motion_model, simulate
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.reality import TrueRadio, profile
 from mexgen_gcs.errors import MexgenError
 from mexgen_gcs.experiments.scenario import Scenario
-from mexgen_gcs.experiments.seeds import truth_seed
+from mexgen_gcs.experiments.seeds import reality_seed, truth_seed
 
 FloatArray = NDArray[np.float64]
 
@@ -176,12 +180,16 @@ class PointMass:
 
 
 class RadioWorld:
-    """The receiver's measurements per pulse, drawn from one generator."""
+    """The receiver's measurements per pulse, drawn from one generator; ``world`` (a drawn
+    reality) replaces the mission's model for the power, detection and noise."""
 
-    def __init__(self, radio: RadioModel, n_tags: int, rng: np.random.Generator) -> None:
+    def __init__(self, radio: RadioModel, n_tags: int, rng: np.random.Generator,
+                 world: TrueRadio | None = None) -> None:
         self.radio = radio
         self.n_tags = n_tags
         self.rng = rng
+        self.world = world
+        self._tags = np.arange(n_tags)
 
     def pulse(self, tag_xy: FloatArray, rx_xyz: FloatArray,
               rx_yaw_rad: float) -> list[list[float]]:
@@ -189,9 +197,13 @@ class RadioWorld:
 
         A fixed number of draws per call: n detection uniforms, n noise normals, n clutter
         counts and the clutter values (whose count does not depend on the pose)."""
-        power = self.radio.power_db(tag_xy, rx_xyz, rx_yaw_rad)
-        detected = self.radio.detect(power, self.rng)
-        z = self.radio.measure(power, self.rng)
+        if self.world is None:
+            power = self.radio.power_db(tag_xy, rx_xyz, rx_yaw_rad)
+            detected = self.radio.detect(power, self.rng)
+            z = self.radio.measure(power, self.rng)
+        else:
+            rx = np.broadcast_to(rx_xyz, (self.n_tags, 3))
+            _, detected, z = self.world.pulse(self._tags, tag_xy, rx, rx_yaw_rad, self.rng)
         n_clutter = self.rng.poisson(self.radio.clutter_rate, self.n_tags)
         clutter = self.rng.uniform(self.radio.clutter_min_db, self.radio.clutter_max_db,
                                    int(n_clutter.sum()))
@@ -202,3 +214,12 @@ class RadioWorld:
             out[i].extend(clutter[offset:offset + c].tolist())
             offset += c
         return out
+
+
+def reality_for(sc: Scenario, radio: RadioModel, seed: int, start: int) -> TrueRadio | None:
+    """The start's radio world under the scenario's reality profile (None when matched: the
+    mission's model itself, drawn exactly as before profiles existed)."""
+    if sc.reality == "matched":
+        return None
+    return profile(sc.reality).realise(radio, sc.n_tags,
+                                       np.random.default_rng(reality_seed(seed, start)))

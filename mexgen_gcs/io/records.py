@@ -316,6 +316,10 @@ class SimHeader(Record):
     listen: list[Any] = f("[host, port] the simulator listens on for MAVLink.")
     tags: list[SimTag] = f("The tags at the start.")
     faults: list[dict[str, Any]] = f("Scheduled faults (kind, at_s and the kind's fields).")
+    reality: dict[str, Any] | None = f(
+        "The radio world drawn from sim.reality (profile, per-tag tx_offset_db and "
+        "tag_height_m, path_loss_exponent, compass_bias_deg, antenna, shadowing_std_db, "
+        "rician_k_db); null for matched.", default=None)
     mission_text: str | None = f("Text of the mission file.")
 
 

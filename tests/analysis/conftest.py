@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 
+from mexgen_gcs.config import CLASSIC_ESTIMATOR
 from mexgen_gcs.mission.controller import ControllerOptions
 from mexgen_gcs.mission.run import SitlPorts, run_sitl
 
@@ -22,7 +23,10 @@ SPEEDUP = 20.0
 def _fly(base: Path, method: str, seed: int, max_time_s: float) -> Path:
     result = run_sitl(MISSIONS / "demo.yaml", seed=seed, speedup=SPEEDUP, method=method,
                       ports=SitlPorts.free(), log_dir=base,
-                      overrides={"safety.max_mission_time_s": max_time_s},
+                      # the classic estimator: these flights test the analysis, and it
+                      # localises within the short flights; the estimator has its own tests
+                      overrides={"safety.max_mission_time_s": max_time_s,
+                                 **CLASSIC_ESTIMATOR},
                       options=ControllerOptions(print_progress=False))
     assert result.log_dir is not None
     return Path(result.log_dir)

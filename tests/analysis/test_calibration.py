@@ -80,12 +80,20 @@ def test_calibrate_prints_a_radio_block_the_mission_file_accepts(
                                  calibrate="T3")) == 0
     out = capsys.readouterr().out
     block = out[out.index("# fitted from"):]
-    radio = yaml.safe_load(block)["radio"]
+    doc = yaml.safe_load(block)
+    radio = doc["radio"]
     assert radio["p0_db"] == pytest.approx(TRUE_P0_DB, abs=5.0)
+    # one tag calibrated: its own power is printed as a tight per-tag prior
+    (tag,) = doc["tags"]
+    assert tag["id"] == "T3" and tag["p0_db"] == radio["p0_db"] and 0.5 <= tag["p0_std_db"] < 3
     mission = yaml.safe_load((missions_dir / "demo.yaml").read_text())
     mission["radio"] = radio
+    mission["tags"] = [tag if t["id"] == "T3" else t for t in mission["tags"]]
     parsed = parse_mission(yaml.safe_dump(mission), source="calibrated")
     assert parsed.radio.path_loss_exponent == radio["path_loss_exponent"]
+    prior = parsed.tag_radio_priors()["T3"]
+    assert prior.offset_db == pytest.approx(tag["p0_db"] - radio["p0_db"])
+    assert prior.std_db == tag["p0_std_db"]
 
 
 @pytest.mark.e2e

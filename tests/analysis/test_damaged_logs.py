@@ -100,8 +100,8 @@ def test_analyze_reports_a_damaged_log_like_the_log_without_those_lines(
     capsys.readouterr()
     assert main(["analyze", str(case["damaged"]), "--out", str(tmp_path / "b")]) == 0
     err = capsys.readouterr().err
-    assert _skipped(err, case["damaged"] / "flight.jsonl") == len(case["lines"]) >= 29
-    assert _skipped(err, case["damaged"] / "truth.jsonl") == len(case["truth_lines"]) >= 33
+    assert _skipped(err, case["damaged"] / "flight.jsonl") == len(case["lines"]) >= 10
+    assert _skipped(err, case["damaged"] / "truth.jsonl") == len(case["truth_lines"]) >= 10
     for reason in ("not UTF-8", "not JSON", "not a record", "invalid "):
         assert reason in err
     a = json.loads((tmp_path / "a" / "summary.json").read_text())

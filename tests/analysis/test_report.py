@@ -87,6 +87,7 @@ def test_errors_match_a_recomputation_against_the_truth_file(demo_log: Path,
         want = math.hypot(first["east_m"] - np.interp(first["t"], tt, xs),
                           first["north_m"] - np.interp(first["t"], tt, ys))
         assert t["error_at_localisation_m"] == pytest.approx(want, abs=1e-6)
+        assert t["inside_claimed_radius"] == (want <= t["localised_radius_m"])
         # the result record's localisation is the same estimate (static tags: same truth)
         loc = result["localised"][t["tag_id"]]
         assert (loc["east_m"], loc["north_m"]) == pytest.approx(
@@ -94,6 +95,9 @@ def test_errors_match_a_recomputation_against_the_truth_file(demo_log: Path,
         assert t["localised_t"] == pytest.approx(loc["t"], abs=1e-6)
         checked += 1
     assert checked >= 1
+    inside = sum(bool(t["inside_claimed_radius"]) for t in summary["tags"])
+    md = (report_dir / "report.md").read_text()
+    assert f"Coverage: {inside} of {checked} localised tags were inside the radius" in md
 
 
 def test_mission_totals_and_failsafes(demo_log: Path) -> None:

@@ -14,6 +14,7 @@ from mexgen_gcs.core.bernoulli import (
 )
 from mexgen_gcs.core.motion import make_motion_model
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import Predicted, RadioUncertainty
 from mexgen_gcs.errors import EstimationError
 
 AREA = SearchArea.rectangle(-500, 500, -500, 500)
@@ -70,7 +71,7 @@ def test_update_matches_hand_computed_two_particles():
     radio = RadioModel(clutter_rate=0.01)
     power = np.array([-40.0, -50.0])
     z = np.array([-41.0])
-    log_l = bernoulli_log_likelihood(radio, power, z)
+    log_l, _ = bernoulli_log_likelihood(radio, RadioUncertainty(), Predicted.known(power), z)
     pd = radio.detection_probability(power)
     g = np.exp(radio.log_likelihood(-41.0, power))
     expected = 1 - pd + pd * g / radio.clutter_density
@@ -83,7 +84,8 @@ def test_update_matches_hand_computed_two_particles():
 
 def test_missed_detection_likelihood_is_one_minus_pd():
     power = np.array([-30.0, -90.0])
-    log_l = bernoulli_log_likelihood(RADIO, power, np.empty(0))
+    log_l, _ = bernoulli_log_likelihood(RADIO, RadioUncertainty(), Predicted.known(power),
+                                        np.empty(0))
     np.testing.assert_allclose(np.exp(log_l), 1 - RADIO.detection_probability(power))
 
 

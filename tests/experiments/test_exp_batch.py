@@ -20,6 +20,7 @@ import pytest
 import yaml
 
 from mexgen_gcs.cli import main
+from mexgen_gcs.config import CLASSIC_ESTIMATOR
 from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.cli import ExperimentOutcome, run_experiment, run_specs
 from mexgen_gcs.experiments.parallel import execute
@@ -214,10 +215,11 @@ def test_cli_preset_field_flies_the_mission_defaults(tmp_path: Path,
                  "pim", "--starts", "1", "--reps", "1", "--quick", "--workers", "1", "--out",
                  str(tmp_path)]) == 0
     ident = json.loads((tmp_path / "experiment.json").read_text())
-    assert ident["preset"] == "field-quick" and ident["format"] == 2
+    assert ident["preset"] == "field-quick" and ident["format"] == 3
     mission = yaml.safe_load((tmp_path / "missions" / "cv-pim.yaml").read_text())
     assert mission["radio"] == {"front_back_db": 3.0, "sensitivity_db": -60.0,
-                                "detection_spread_db": 2.0, "pd_max": 0.95}
+                                "detection_spread_db": 2.0, "pd_max": 0.95,
+                                **{k.split(".")[1]: v for k, v in CLASSIC_ESTIMATOR.items()}}
     assert read_rows(tmp_path)[0]["preset"] == "field-quick"
     summary = (tmp_path / "summary.md").read_text()
     assert "field-quick preset" in summary and "sensitivity -60 dB" in summary

@@ -124,7 +124,8 @@ def test_follow_run_records_error_and_trace_every_pulse() -> None:
 @pytest.mark.parametrize("model", MODELS)
 def test_the_filter_assumes_the_scenario_model(model: str) -> None:
     m = mission_for(scenario("localise", model), "mexgen")  # type: ignore[arg-type]
-    expected = {"rw": "rw", "cv": "cv", "cv-ift": "cv-ift", "cv-ift-mismatch": "cv-mismatch"}
+    expected = {"static": "static", "rw": "rw", "cv": "cv", "cv-ift": "cv-ift",
+                "cv-ift-mismatch": "cv-mismatch"}
     assert m.filter.motion == expected[model]
     assert m.planner.lookahead_s == 20.0 and m.planner.samples == 512
     assert m.flight.speed_m_s == 15.0 and m.flight.max_accel_m_s2 == 4.0

@@ -142,7 +142,8 @@ def _launch(cmd: list[str], make: Callable[[subprocess.Popen[str]], SimProcess])
 
 def write_mission(path: Path, *, tags: list[dict[str, Any]], sim_tags: list[dict[str, Any]],
                   area: str = "{west_m: -1000, east_m: 1000, south_m: -500, north_m: 9000}",
-                  radio: str = "", faults: str = "[]", endurance_s: float = 1800.0) -> Path:
+                  radio: str = "", faults: str = "[]", endurance_s: float = 1800.0,
+                  reality: str = "matched") -> Path:
     """A small mission file in the brief's schema."""
     tag_lines = "\n".join(f"  - {{id: {t['id']}, freq_hz: {t['freq_hz']}}}" for t in tags)
     sim_lines = "\n".join(
@@ -158,6 +159,7 @@ tags:
 {radio}
 sim:
   seed: 11
+  reality: {reality}
   battery_endurance_s: {endurance_s}
   tags:
 {sim_lines}

@@ -1,0 +1,360 @@
+"""What each particle believes about the radio it cannot see: a Gaussian over two unknowns.
+
+Frame: local ENU metres about home (x east, y north, z up; tags on the ground at z = 0); yaw is
+a compass heading in radians, as in :mod:`core.radio`.
+
+Given a tag position, the log-distance model is linear in the unknowns ``theta = (b, n)``: the
+tag's received-power offset ``b`` (transmit power, antenna mean gain) and the path-loss
+exponent ``n``::
+
+    P(x, u) = P0 + g(x, u) + [1, l(x, u)] theta,     l = -10 log10(max(d, d_min) / d0)
+
+so each particle carries a Gaussian ``N(mu, Sigma)`` over theta and the filter stays a particle
+filter over position only: a Rao-Blackwellised particle filter (Doucet et al. 2000). Per
+particle and pulse this costs a 2-state Kalman step: O(N) vectorised arrays, no loops.
+
+- Shadowing is a static Gaussian field over the receiver's position, ``cov = sigma_s^2
+  exp(-|u - u'| / L)`` (Gudmundson's model), so a pulse heard near earlier ones repeats their
+  shadowing. Each detection is conditioned on the m nearest earlier detections (a nearest-
+  neighbour, Vecchia, Gaussian-process approximation): with ``beta = (C + R I)^-1 c`` and
+  ``r^2 = sigma_s^2 + R - c' beta`` (C among the neighbours, c to them, both shared by every
+  particle), the prewhitened measurement ``z~ = z - sum beta_j z_j`` has mean
+  ``c~ + H~ theta`` with ``c~ = (P0 + g) - sum beta_j (P0 + g_j)``, ``H~ = H - sum beta_j H_j``
+  and variance ``r^2``: still linear-Gaussian in theta, so the Kalman step below is unchanged
+  and a hover or a revisit adds only what it really adds. ``R = noise^2 + model_error^2``.
+- Roughness levels: shadowing and model error are scaled by a level per particle (particle
+  slot ``i`` has level ``i % L``); the filter resamples within levels, so the levels form a
+  bank of filters weighted by their marginal likelihoods (:mod:`core.bernoulli`).
+- Detection probability of a particle marginalises its power uncertainty ``v = H Sigma H'``
+  and the shadowing and model error of the instantaneous power::
+
+      pD = pd_max Phi((m - sensitivity) / sqrt(spread^2 + v + sigma_s^2 + model_error^2))
+
+- A detected power ``z`` has the robust likelihood of an outlier mixture::
+
+      g(z | x) = (1 - eps) N(z~; c~ + H~ mu, H~ Sigma H~' + r^2) + eps U(z; clutter range)
+
+  The Kalman step is weighted by the particle's inlier responsibility ``w`` and
+  moment-matched, so one bad pulse neither drags the unknowns nor collapses their variance::
+
+      mu    <- mu + w K e,      K = Sigma H~' / S,  S = H~ Sigma H~' + r^2,  e = z~ - c~ - H~ mu
+      Sigma <- Sigma - (w / S - w (1 - w) e^2 / S^2) Sigma H~' H~ Sigma
+
+- A missed pulse leaves theta unchanged (its likelihood ``1 - pD`` only weights particles).
+
+With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
+Covariances are stored as their three unique entries ``[bb, bn, nn]``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import log_ndtr
+
+from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.errors import EstimationError
+
+FloatArray = NDArray[np.float64]
+
+_LOG_2PI = math.log(2.0 * math.pi)
+BB, BN, NN = range(3)
+
+
+@dataclass(frozen=True, slots=True)
+class RadioUncertainty:
+    """What the estimator does not know about the radio. All zero: the classic estimator,
+    which trusts the mission's radio model exactly (the filter of earlier versions)."""
+
+    p0_std_db: float = 0.0
+    """Prior std of each tag's received-power offset b about the mission's P0, dB."""
+    path_loss_exponent_std: float = 0.0
+    """Prior std of the path-loss exponent about the mission's, per tag."""
+    shadowing_std_db: tuple[float, ...] = (0.0,)
+    """Hypotheses about the std of the shadowing (a static field over the receiver position),
+    dB. Each (shadowing, model error) pair of the two lists is a roughness level; every
+    particle belongs to one level for its life, and the filter resamples within levels, so
+    the levels form a bank of filters weighted by their marginal likelihoods: the data select
+    how rough the radio is, and a benign world does not pay for the priors of a rough one."""
+    shadowing_distance_m: float = 50.0
+    """Correlation distance L of the shadowing, exp(-d / L), m."""
+    outlier_prob: float = 0.0
+    """eps: probability that a detected power is an outlier (uniform over the clutter range)."""
+    model_error_std_db: tuple[float, ...] = (0.0,)
+    """Hypotheses about uncorrelated model error added to the receiver noise (fading,
+    antenna pattern error), dB; see shadowing_std_db."""
+
+    def __post_init__(self) -> None:
+        for name in ("p0_std_db", "path_loss_exponent_std"):
+            if not (getattr(self, name) >= 0.0 and math.isfinite(getattr(self, name))):
+                raise EstimationError(f"{name} must be finite and >= 0 (got {getattr(self, name)})")
+        for name in ("shadowing_std_db", "model_error_std_db"):
+            v = getattr(self, name)
+            if not v or not all(math.isfinite(x) and x >= 0.0 for x in v):
+                raise EstimationError(f"{name} must be a non-empty list of numbers >= 0 "
+                                      f"(got {v})")
+        if not self.shadowing_distance_m > 0.0:
+            raise EstimationError("shadowing_distance_m must be > 0")
+        if not 0.0 <= self.outlier_prob < 1.0:
+            raise EstimationError(f"outlier_prob must be in [0, 1) (got {self.outlier_prob})")
+
+    @property
+    def levels(self) -> tuple[tuple[float, float], ...]:
+        """The roughness levels: every (shadowing std, model error std) pair, dB."""
+        return tuple((s, m) for s in self.shadowing_std_db for m in self.model_error_std_db)
+
+    @property
+    def active(self) -> bool:
+        """True if anything differs from the classic model."""
+        return (self.p0_std_db > 0.0 or self.path_loss_exponent_std > 0.0
+                or self.outlier_prob > 0.0 or any(s > 0.0 or m > 0.0 for s, m in self.levels))
+
+
+@dataclass(frozen=True, slots=True)
+class TagRadioPrior:
+    """One tag's prior received-power offset about the mission's P0 (from a calibration)."""
+
+    offset_db: float = 0.0
+    std_db: float | None = None
+    """None: the mission's ``p0_std_db``."""
+
+
+@dataclass(slots=True)
+class RadioBelief:
+    """Per-particle Gaussians over theta = (b, n): ``mean (N, 2)``, ``cov (N, 3)``, and each
+    particle's roughness level ``level (N,) int8`` (fixed by its slot)."""
+
+    mean: FloatArray
+    cov: FloatArray
+    level: NDArray[np.int8]
+
+    @classmethod
+    def prior(cls, n: int, radio: RadioModel, unc: RadioUncertainty,
+              tag: TagRadioPrior | None = None) -> RadioBelief:
+        tag = tag or TagRadioPrior()
+        std_b = unc.p0_std_db if tag.std_db is None else tag.std_db
+        mean = np.empty((n, 2))
+        mean[:] = (tag.offset_db, radio.path_loss_exponent)
+        level = (np.arange(n) % len(unc.levels)).astype(np.int8)
+        cov = np.zeros((n, 3))
+        cov[:, BB] = std_b**2
+        cov[:, NN] = unc.path_loss_exponent_std**2
+        return cls(mean, cov, level)
+
+    def permute(self, rows: slice, idx: NDArray[np.intp]) -> None:
+        """Rows ``rows`` become their own rows ``idx`` (resampling within a level)."""
+        self.mean[rows] = self.mean[rows][idx]
+        self.cov[rows] = self.cov[rows][idx]
+
+    def rebirth(self, rows: NDArray[np.bool_], radio: RadioModel, unc: RadioUncertainty,
+                tag: TagRadioPrior | None) -> None:
+        """Rows ``rows`` (N,) return to the prior of their own level (births)."""
+        prior = RadioBelief.prior(self.level.shape[0], radio, unc, tag)
+        self.mean[rows] = prior.mean[rows]
+        self.cov[rows] = prior.cov[rows]
+
+
+@dataclass(frozen=True, slots=True)
+class Predicted:
+    """A particle set's predicted power for one receiver pose (all (N,))."""
+
+    mean_db: FloatArray
+    """m = P0 + g + H mu."""
+    var_db2: FloatArray
+    """v = H Sigma H' (zero for the classic model)."""
+    log_term: FloatArray
+    """l = -10 log10(d / d0), the exponent's regressor."""
+    sigma_h: FloatArray | None
+    """Sigma H' (N, 2), None for the classic model."""
+
+    @classmethod
+    def known(cls, power_db: FloatArray) -> Predicted:
+        """Powers of a model with nothing unknown (the classic filter)."""
+        p = np.asarray(power_db, dtype=np.float64)
+        return cls(p, np.zeros_like(p), np.zeros_like(p), None)
+
+
+SHADOW_NEIGHBOURS = 6
+"""m: earlier detection cells each detection is conditioned on (Vecchia approximation)."""
+CELL_M = 5.0
+"""Detections within this distance (and CELL_YAW_RAD of heading) share a memory cell."""
+CELL_YAW_RAD = math.radians(30.0)
+_MIN_CORRELATION = 0.02
+"""Earlier cells less correlated than this with a new detection are not neighbours."""
+
+
+@dataclass(slots=True)
+class ShadowMemory:
+    """The detections a filter has used, summarised in small cells (pose of the first
+    detection, mean power, count, last time), to condition new detections on. A cell of n
+    pulses conditions like one pulse with noise R / n: hovering over one spot converges on
+    its shadowing instead of leaking ~1/m of it as new information with every pulse.
+
+    Static tags keep every cell; for moving tags only cells used within ``horizon_s`` (the
+    shadowing is a field about the tag's place too, which moves on)."""
+
+    horizon_s: float = math.inf
+    poses: FloatArray = dataclass_field(default_factory=lambda: np.zeros((0, 4)))
+    """(K, 4) receiver east, north, up, yaw_rad of each cell's first detection."""
+    z_sum: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
+    n: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
+    t_s: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
+    count: int = 0
+
+    @property
+    def z_db(self) -> FloatArray:
+        """(K,) mean power of each cell."""
+        k = self.count
+        return self.z_sum[:k] / np.maximum(self.n[:k], 1.0)
+
+    def add(self, t_s: float, rx_xyz: FloatArray, yaw_rad: float, z_db: float) -> None:
+        k = self.count
+        if k:
+            d = np.hypot(self.poses[:k, 0] - rx_xyz[0], self.poses[:k, 1] - rx_xyz[1])
+            dyaw = np.abs((self.poses[:k, 3] - yaw_rad + math.pi) % (2 * math.pi) - math.pi)
+            same = np.flatnonzero((d < CELL_M) & (dyaw < CELL_YAW_RAD))
+            if same.size:
+                c = int(same[np.argmin(d[same])])
+                self.z_sum[c] += z_db
+                self.n[c] += 1.0
+                self.t_s[c] = t_s
+                return
+        if k >= self.z_sum.shape[0]:
+            size = max(64, 2 * k)
+            self.poses = np.concatenate([self.poses, np.zeros((size - k, 4))])
+            self.z_sum, self.n, self.t_s = (np.concatenate([a, np.zeros(size - k)])
+                                            for a in (self.z_sum, self.n, self.t_s))
+        self.poses[k, :3], self.poses[k, 3] = rx_xyz, yaw_rad
+        self.z_sum[k], self.n[k], self.t_s[k] = z_db, 1.0, t_s
+        self.count = k + 1
+
+    def neighbours(self, t_s: float, rx_xy: FloatArray, distance_m: float
+                   ) -> tuple[NDArray[np.intp], FloatArray]:
+        """Indices of the m nearest usable cells and their distances to rx."""
+        k = self.count
+        if k == 0:
+            return np.empty(0, np.intp), np.empty(0)
+        d = np.hypot(self.poses[:k, 0] - rx_xy[0], self.poses[:k, 1] - rx_xy[1])
+        ok = d < -distance_m * math.log(_MIN_CORRELATION)
+        if math.isfinite(self.horizon_s):
+            ok &= self.t_s[:k] >= t_s - self.horizon_s
+        idx = np.flatnonzero(ok)
+        if idx.size > SHADOW_NEIGHBOURS:
+            idx = idx[np.argpartition(d[idx], SHADOW_NEIGHBOURS)[:SHADOW_NEIGHBOURS]]
+        return idx, d[idx]
+
+
+def shadow_conditioning(memory: ShadowMemory, idx: NDArray[np.intp], d_new: FloatArray,
+                        shadow_var: float, noise_var: float, distance_m: float
+                        ) -> tuple[FloatArray, float]:
+    """(beta (m,), r^2) of a new detection given the mean powers of cells ``idx`` at
+    distances d_new (a cell of n pulses has noise R / n)."""
+    if idx.size == 0 or shadow_var <= 0.0:
+        return np.zeros(idx.size), shadow_var + noise_var
+    p = memory.poses[idx, :2]
+    dd = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    cmat = shadow_var * np.exp(-dd / distance_m)
+    cmat[np.diag_indices(idx.size)] += noise_var / memory.n[idx]
+    c = shadow_var * np.exp(-d_new / distance_m)
+    beta = np.linalg.solve(cmat, c)
+    return beta, max(shadow_var + noise_var - float(c @ beta), 1e-9)
+
+
+def predict_power(radio: RadioModel, belief: RadioBelief | None, tag_xy: FloatArray,
+                  rx_xyz: FloatArray, rx_yaw_rad: float) -> Predicted:
+    """Predicted power of every particle (tag_xy (N, 2)) from one receiver pose."""
+    log_term, gain = radio.geometry(tag_xy, rx_xyz, rx_yaw_rad)
+    return _predicted(radio, belief, radio.p0_db + gain, log_term, np.ones_like(log_term))
+
+
+def predict_prewhitened(radio: RadioModel, belief: RadioBelief | None, tag_xy: FloatArray,
+                        rx_xyz: FloatArray, rx_yaw_rad: float, memory: ShadowMemory,
+                        idx: NDArray[np.intp], beta: FloatArray) -> tuple[Predicted, Predicted]:
+    """(marginal, prewhitened) predictions of every particle: ``m = P0 + g + H mu`` and
+    ``c~ + H~ mu`` (see the module), the latter the new pose's prediction minus ``beta``
+    (N, m) times the neighbours' (their poses ``memory[idx]``)."""
+    log_term, gain = radio.geometry(tag_xy, rx_xyz, rx_yaw_rad)
+    one = np.ones_like(log_term)
+    marginal = _predicted(radio, belief, radio.p0_db + gain, log_term, one)
+    if idx.size == 0:
+        return marginal, marginal
+    p = memory.poses[idx]
+    l_j, g_j = radio.geometry(tag_xy[:, None, :], p[None, :, :3], p[None, :, 3])
+    base = radio.p0_db * (1.0 - beta.sum(axis=1)) + gain - (g_j * beta).sum(axis=1)
+    whitened = _predicted(radio, belief, base, log_term - (l_j * beta).sum(axis=1),
+                          one - beta.sum(axis=1))
+    return marginal, whitened
+
+
+def _predicted(radio: RadioModel, belief: RadioBelief | None, base: FloatArray,
+               log_term: FloatArray, one: FloatArray) -> Predicted:
+    """m = base + [one, log_term] theta and its variance, H = [one, log_term]."""
+    if belief is None:
+        mean = base + radio.path_loss_exponent * log_term
+        return Predicted(mean, np.zeros_like(mean), log_term, None)
+    mu, c = belief.mean, belief.cov
+    mean = base + one * mu[:, 0] + log_term * mu[:, 1]
+    sh = np.empty((log_term.shape[0], 2))  # Sigma H'
+    sh[:, 0] = c[:, BB] * one + c[:, BN] * log_term
+    sh[:, 1] = c[:, BN] * one + c[:, NN] * log_term
+    var = one * sh[:, 0] + log_term * sh[:, 1]
+    return Predicted(mean, np.maximum(var, 0.0), log_term, sh)
+
+
+def log_detection_probability(radio: RadioModel, pred: Predicted,
+                              extra_var: FloatArray | float = 0.0
+                              ) -> tuple[FloatArray, FloatArray]:
+    """(log pD, log(1 - pD)) per particle, marginalising the power uncertainty and the
+    instantaneous power's variance ``extra_var`` about its mean. Finite."""
+    spread = np.sqrt(radio.detection_spread_db**2 + pred.var_db2 + extra_var)
+    x = (pred.mean_db - radio.sensitivity_db) / spread
+    log_pd_max = math.log(max(radio.pd_max, 1e-300))
+    log_pd = log_pd_max + log_ndtr(x)
+    # 1 - pd_max Phi(x) = (1 - pd_max) + pd_max Phi(-x)
+    with np.errstate(divide="ignore"):
+        log_miss = np.logaddexp(math.log1p(-min(radio.pd_max, 1.0 - 1e-12)),
+                                log_pd_max + log_ndtr(-x))
+    return np.maximum(log_pd, -1e4), np.maximum(log_miss, -1e4)
+
+
+def log_detected_density(radio: RadioModel, unc: RadioUncertainty, pred: Predicted,
+                         z_db: FloatArray, noise_var: FloatArray | float
+                         ) -> tuple[FloatArray, FloatArray]:
+    """log g(z | x) (N, m) of the robust mixture for measurements z (m,) or per particle
+    (N, m), given the noise variance R (N,) or scalar; and the inlier responsibility (N, m)."""
+    s = pred.var_db2 + noise_var  # (N,)
+    z = np.asarray(z_db)
+    e = (z if z.ndim == 2 else z[None, :]) - pred.mean_db[:, None]
+    log_in = -0.5 * (e * e / s[:, None] + np.log(s)[:, None] + _LOG_2PI)
+    eps = unc.outlier_prob
+    if eps <= 0.0:
+        return log_in, np.ones_like(log_in)
+    log_out = math.log(eps) - math.log(radio.clutter_max_db - radio.clutter_min_db)
+    log_in = log_in + math.log1p(-eps)
+    log_g = np.logaddexp(log_in, log_out)
+    return log_g, np.exp(log_in - log_g)
+
+
+def kalman_update(belief: RadioBelief, pred: Predicted, z_db: FloatArray | float,
+                  weight: FloatArray, noise_var: FloatArray | float) -> None:
+    """Weighted, moment-matched update of every particle's Gaussian with one power z_db
+    (scalar, or (N,) prewhitened per particle);
+    ``weight`` (N,) in [0, 1] is the probability that z is this particle's inlier."""
+    if pred.sigma_h is None:
+        return
+    s = pred.var_db2 + noise_var
+    e = z_db - pred.mean_db
+    w = np.clip(weight, 0.0, 1.0)
+    belief.mean += (w * e / s)[:, None] * pred.sigma_h
+    f = w / s - w * (1.0 - w) * e * e / (s * s)
+    sh = pred.sigma_h
+    c = belief.cov
+    c[:, BB] -= f * sh[:, 0] * sh[:, 0]
+    c[:, BN] -= f * sh[:, 0] * sh[:, 1]
+    c[:, NN] -= f * sh[:, 1] * sh[:, 1]
+    for d in (BB, NN):  # rounding must never make a variance negative
+        np.maximum(c[:, d], 0.0, out=c[:, d])

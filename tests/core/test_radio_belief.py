@@ -1,0 +1,133 @@
+"""The Rao-Blackwellised radio unknowns: recovered from a survey, robust to bad pulses,
+honest about shadowing that repeats, and the classic model when nothing is unknown."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig
+from mexgen_gcs.core.motion import make_motion_model
+from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import RadioUncertainty, ShadowMemory, shadow_conditioning
+
+RADIO = RadioModel()
+AREA = SearchArea.rectangle(-600, 600, -600, 600)
+UNKNOWN = RadioUncertainty(p0_std_db=4.0, path_loss_exponent_std=0.3, outlier_prob=0.05)
+TAG = np.array([120.0, -80.0])
+
+
+def _survey(k: int) -> tuple[np.ndarray, float]:
+    """Circles about the tag at radii 500 m down to 30 m, 30 m above it: a calibration survey
+    (from outside in, as a survey approaches a tag it has not found yet)."""
+    radius = (500.0, 250.0, 120.0, 60.0, 30.0)[(k // 300) % 5]
+    ang = k * 10.0 / radius
+    pos = TAG + radius * np.array([math.sin(ang), math.cos(ang)])
+    return np.array([pos[0], pos[1], 30.0]), (ang + math.pi / 2) % (2 * math.pi)
+
+
+def _fly(offset_db: float, exponent: float, seed: int, outlier_rate: float = 0.0,
+         steps: int = 1500, unknowns: RadioUncertainty = UNKNOWN,
+         jump_db: float = 30.0) -> BernoulliFilter:
+    truth = RadioModel(p0_db=RADIO.p0_db + offset_db, path_loss_exponent=exponent)
+    f = BernoulliFilter(make_motion_model("static"), RADIO, AREA,
+                        FilterConfig(radio_unknowns=unknowns), np.random.default_rng(seed))
+    rng = np.random.default_rng(seed + 100)
+    for k in range(steps):
+        rx, yaw = _survey(k)
+        p = truth.power_db(TAG, rx, yaw)
+        z = [float(truth.measure(p, rng))] if truth.detect(np.array(p), rng) else []
+        if z and rng.random() < outlier_rate:
+            z = [z[0] + jump_db]
+        f.predict(1.0)
+        f.update(np.array(z), rx, yaw)
+    return f
+
+
+@pytest.mark.parametrize(("offset_db", "exponent", "seed"),
+                         [(4.0, 1.9, 0), (-5.0, 1.3, 1), (2.0, 2.1, 2)])
+def test_a_survey_recovers_the_tags_offset_and_exponent(offset_db, exponent, seed):
+    est = _fly(offset_db, exponent, seed).estimate()
+    assert est.p0_offset_db == pytest.approx(offset_db, abs=1.0)
+    assert est.path_loss_exponent == pytest.approx(exponent, abs=0.15)
+    assert math.dist(est.mean[:2], TAG) < 15.0
+
+
+@pytest.mark.parametrize("jump_db", [-12.0, 30.0])
+def test_five_percent_outliers_do_not_move_the_estimate(jump_db):
+    """5 % of the pulses off by a deep fade (-12 dB) or wildly (+30 dB): the estimate holds."""
+    clean = _fly(3.0, 1.7, 4).estimate()
+    dirty = _fly(3.0, 1.7, 4, outlier_rate=0.05, jump_db=jump_db).estimate()
+    assert dirty.p0_offset_db == pytest.approx(3.0, abs=1.0)
+    assert dirty.path_loss_exponent == pytest.approx(1.7, abs=0.15)
+    assert math.dist(dirty.mean[:2], TAG) < 15.0
+    assert dirty.radius_m < 1.5 * clean.radius_m
+
+
+def test_shadowing_heard_again_adds_little():
+    """Detections from one spot repeat its shadowing: they share a memory cell, and a new
+    detection there, conditioned on the cell's mean, has almost only the receiver noise left."""
+    mem = ShadowMemory()
+    rx = np.array([10.0, 0.0, 50.0])
+    for k in range(30):
+        mem.add(float(k), rx + np.array([k * 0.1, 0.0, 0.0]), 0.0, -50.0 + k % 3)
+    assert mem.count == 1 and mem.n[0] == 30 and mem.z_db[0] == pytest.approx(-49.0)
+    idx, d = mem.neighbours(40.0, rx[:2], 50.0)
+    beta, r2 = shadow_conditioning(mem, idx, d, 16.0, 6.25, 50.0)
+    assert beta.sum() == pytest.approx(16.0 / (16.0 + 6.25 / 30), abs=1e-6)
+    assert r2 == pytest.approx(6.25 + 16.0 * (6.25 / 30) / (16.0 + 6.25 / 30))
+    # another heading is another cell (the antenna pattern differs); far away: no neighbours
+    mem.add(41.0, rx, math.pi, -55.0)
+    assert mem.count == 2
+    assert mem.neighbours(40.0, np.array([900.0, 0.0]), 50.0)[0].size == 0
+
+
+def test_hovering_does_not_pretend_to_know_the_offset():
+    """Hovering in one place under 4 dB static shadowing: the offset and the shadowing there
+    are confounded, so the offset's variance must stay near the shadowing variance instead of
+    shrinking like 1/N as independent pulses would make it."""
+    unc = RadioUncertainty(p0_std_db=6.0, shadowing_std_db=(4.0,))
+    f = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(
+        radio_unknowns=unc, n_particles=500), np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    rx = np.array([TAG[0] + 40.0, TAG[1], 50.0])
+    for _ in range(300):
+        p = RADIO.power_db(TAG, rx, 0.0)
+        f.predict(1.0)
+        f.update(np.array([float(RADIO.measure(p, rng))]), rx, 0.0)
+    b = f.radio_belief
+    assert b is not None
+    w = np.exp(f.log_w)
+    var_b = float(w @ b.cov[:, 0])
+    assert var_b > 0.5 * 16.0 * 36.0 / (16.0 + 36.0)
+
+
+def test_nothing_unknown_is_the_classic_filter():
+    a = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(),
+                        np.random.default_rng(3))
+    assert a.radio_belief is None and a.n_levels == 1
+    b = BernoulliFilter(make_motion_model("static"), RADIO, AREA,
+                        FilterConfig(radio_unknowns=UNKNOWN), np.random.default_rng(3))
+    assert b.radio_belief is not None
+
+
+def test_roughness_levels_keep_their_particles_and_share_the_weight():
+    unc = RadioUncertainty(p0_std_db=2.0, shadowing_std_db=(0.0, 4.0), model_error_std_db=(0.0,))
+    f = BernoulliFilter(make_motion_model("static"), RADIO, AREA,
+                        FilterConfig(radio_unknowns=unc, n_particles=600),
+                        np.random.default_rng(0))
+    rng = np.random.default_rng(2)
+    for k in range(400):
+        rx, yaw = _survey(k)
+        p = RADIO.power_db(TAG, rx, yaw)
+        f.predict(1.0)
+        f.update(np.array([float(RADIO.measure(p, rng))]), rx, yaw)
+    assert f.n_resamples > 0
+    levels = f.radio_belief.level
+    assert np.bincount(levels).tolist() == [300, 300]  # resampling never moves a slot's level
+    w = np.exp(f.log_w)
+    smooth = float(w[levels == 0].sum())
+    assert smooth > 0.9  # the data (no shadowing) favour the smooth level
