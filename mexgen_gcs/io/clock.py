@@ -12,6 +12,16 @@ whatever rate the CPU allows: the newest samples say where it is now). Re-planni
 filter cadence, time limits, timeouts and every logged ``t`` then live on one time base with
 the detections' own timestamps.
 
+Which vehicle time: SYSTEM_TIME carries two clocks, ``time_unix_usec`` and ``time_boot_ms``.
+On an aircraft both run at wall speed; on PX4 SITL at speed factor K the unix field is the
+HOST's wall clock while ``time_boot_ms`` runs at the simulated rate (measured 3.90-3.92x at
+K = 4, 9.42-9.52x at K = 10). The vehicle's time is therefore ``boot_unix + time_boot_ms``
+(:class:`BootAnchor`), ``boot_unix`` being the unix time at which the boot clock read zero,
+fitted once from the first pairs spanning 3 s (``boot = rate (unix - boot_unix)``): exactly
+``unix - boot`` on an aircraft, the host time PX4 booted at on SITL. Every observer (the GCS,
+radios riding on the vehicle's telemetry) computes the same ``boot_unix`` whenever it starts
+listening. Without ``time_boot_ms`` (a MAVSDK without MAVLink-direct) the unix field is used.
+
 ``rate`` is vehicle seconds per wall second; ``sleep(dt)`` sleeps ``dt / rate`` wall seconds.
 Durations are always measured on ``time.monotonic`` (never ``time.time``, which can jump):
 ``time.time`` is read once, to anchor the wall fallback in unix time.
@@ -30,6 +40,52 @@ import numpy as np
 
 #: SYSTEM_TIME values below this (2001-09-09) mean "not set" (no GPS time yet).
 MIN_VALID_UNIX_S = 1.0e9
+
+
+def fit_boot_unix(samples: list[tuple[float, float]]) -> tuple[float, float]:
+    """(boot_unix, rate) from (unix_s, boot_s) pairs: boot = rate * (unix - boot_unix)."""
+    arr = np.asarray(samples, dtype=np.float64)
+    u0 = float(arr[0, 0])
+    du = arr[:, 0] - u0
+    if np.ptp(du) == 0.0:
+        return u0 - float(arr[0, 1]), 1.0
+    rate, c = (float(v) for v in np.polyfit(du, arr[:, 1], 1))
+    if not rate > 0.0:
+        return u0 - float(arr[0, 1]), 1.0
+    return u0 - c / rate, rate
+
+
+class BootAnchor:
+    """The vehicle's time from SYSTEM_TIME pairs: ``boot_unix + time_boot_ms / 1000`` (see the
+    module docstring). ``add`` returns the vehicle time of a pair, None until ``min_samples``
+    valid pairs span ``span_s`` of unix time; a boot clock that goes back (a reboot) starts
+    over."""
+
+    def __init__(self, min_samples: int = 5, span_s: float = 3.0) -> None:
+        self.min_samples = min_samples
+        self.span_s = span_s
+        self.boot_unix_s: float | None = None
+        self.rate = 1.0
+        self._pairs: list[tuple[float, float]] = []
+
+    def add(self, unix_s: float, boot_s: float) -> float | None:
+        if not (math.isfinite(boot_s) and boot_s >= 0.0):
+            return None
+        if self._pairs and boot_s < self._pairs[-1][1]:  # rebooted
+            self._pairs.clear()
+            self.boot_unix_s = None
+        if self.boot_unix_s is None:
+            if not (math.isfinite(unix_s) and unix_s >= MIN_VALID_UNIX_S):
+                return None
+            self._pairs.append((unix_s, boot_s))
+            if (len(self._pairs) < self.min_samples
+                    or self._pairs[-1][0] - self._pairs[0][0] < self.span_s):
+                return None
+            self.boot_unix_s, self.rate = fit_boot_unix(self._pairs)
+            self._pairs = self._pairs[-1:]
+        else:
+            self._pairs = [(unix_s, boot_s)]
+        return self.boot_unix_s + boot_s
 
 
 class Clock(Protocol):

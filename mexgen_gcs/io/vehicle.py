@@ -20,6 +20,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import json
 import logging
 import math
 import time
@@ -28,6 +29,7 @@ from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
 from mexgen_gcs.errors import VehicleError
+from mexgen_gcs.io.clock import BootAnchor
 
 log = logging.getLogger(__name__)
 
@@ -213,6 +215,7 @@ class MavsdkVehicle:
         from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
         from mavsdk.asyncio.plugins.action import ActionAsync
         from mavsdk.asyncio.plugins.geofence import GeofenceAsync
+        from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
         from mavsdk.asyncio.plugins.offboard import OffboardAsync
         from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
@@ -232,6 +235,7 @@ class MavsdkVehicle:
             "action": ActionAsync(system),
             "offboard": OffboardAsync(system),
             "geofence": GeofenceAsync(system),
+            "mavlink_direct": MavlinkDirectAsync(system),
         }
         self.hub.update(connected=True)
 
@@ -289,6 +293,33 @@ class MavsdkVehicle:
             self.hub.status_text(severity, str(getattr(st, "text", "")).rstrip())
 
     async def _pump_time(self, tel: Any) -> None:
+        """The vehicle's clock: both SYSTEM_TIME fields through MAVSDK's MAVLink-direct plugin
+        (``boot_unix + time_boot_ms``, io.clock.BootAnchor); the unix field alone if that
+        plugin is missing."""
+        direct = self._plugins.get("mavlink_direct")
+        if direct is not None:
+            await self._pump_system_time(direct)
+            return
+        await self._pump_unix_time(tel)
+
+    async def _pump_system_time(self, direct: Any) -> None:
+        """SYSTEM_TIME (PX4 sends it at 1 Hz) as raw MAVLink, both fields, stamped when the
+        event loop takes it (a late stamp only delays: the clock fit keeps the earliest)."""
+        anchor = BootAnchor()
+        async for msg in direct.subscribe_message("SYSTEM_TIME"):
+            mono = time.monotonic()
+            try:
+                fields = json.loads(msg.fields_json)
+                unix_s = float(fields["time_unix_usec"]) / 1e6
+                boot_s = float(fields["time_boot_ms"]) / 1e3
+            except (KeyError, TypeError, ValueError) as exc:  # a malformed message
+                log.warning("SYSTEM_TIME ignored: %s", exc)
+                continue
+            vehicle_s = anchor.add(unix_s, boot_s)
+            if vehicle_s is not None:
+                self.hub.time_sample(vehicle_s, mono)
+
+    async def _pump_unix_time(self, tel: Any) -> None:
         """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds, stamped on
         arrival in MAVSDK's own thread (so a busy event loop does not delay the stamp); the
         public async stream, stamped in the loop, if the native plugin is not reachable."""
