@@ -101,7 +101,7 @@ def parse_fault_flag(text: str) -> Fault:
 
 def fault_from_config(obj: Any) -> Fault:
     """A fault from the mission schema (a pydantic model or a mapping)."""
-    get = obj.get if isinstance(obj, dict) else (lambda k, d=None: getattr(obj, k, d))
+    get: Any = obj.get if isinstance(obj, dict) else (lambda k, d=None: getattr(obj, k, d))
     kind = str(get("kind"))
     extra: dict[str, Any] = {
         k: (str(get(k)) if k in _TEXT_FIELDS else float(get(k)))

@@ -83,7 +83,7 @@ def from_global_int(msg: Any, frame: LocalFrame, home_up_m: float) -> Parsed:
             e, n, u = frame.to_enu(lat, lon, alt)
         else:  # relative-altitude and terrain frames
             e, n, _ = frame.to_enu(lat, lon, frame.alt0_m)
-            u = alt + home_up_m
+            u = alt + home_up_m  # type: ignore[assignment]  # a float where to_enu gives arrays
         return Setpoint(position_enu_m=(float(e), float(n), float(u)), yaw_deg=yaw,
                         yaw_rate_deg_s=rate)
     if not mask & _VELOCITY_BITS:

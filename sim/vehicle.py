@@ -316,8 +316,8 @@ class MavlinkVehicle:
         table = self.ap.params
         kind = msg.get_type()
         if kind == "PARAM_REQUEST_LIST":
-            for name in table.names():
-                self._param_value(name)
+            for each in table.names():
+                self._param_value(each)
             return
         if kind == "PARAM_REQUEST_READ" and msg.param_index >= 0:
             name = table.name_at(msg.param_index)

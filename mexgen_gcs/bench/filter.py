@@ -13,10 +13,10 @@ import numpy as np
 from mexgen_gcs.bench import emit, pin_single_thread, time_calls
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig
-from mexgen_gcs.core.motion import make_motion_model
+from mexgen_gcs.core.motion import MotionName, make_motion_model
 from mexgen_gcs.core.radio import RadioModel
 
-MODELS = ("rw", "cv", "ctra", "cv-ift", "cv-mismatch")
+MODELS: tuple[MotionName, ...] = ("rw", "cv", "ctra", "cv-ift", "cv-mismatch")
 
 
 def run(iterations: int = 200, sizes: tuple[int, ...] = (1000, 10000)) -> dict[str, Any]:

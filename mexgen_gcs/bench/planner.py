@@ -32,12 +32,13 @@ import numpy as np
 
 from mexgen_gcs.bench import pin_single_thread
 from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.generators import METHOD_NAMES, MethodName
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.planner import Planner, PlannerConfig, TagBelief, VehicleState
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.rollout import PlanningBelief
 
-METHODS = ("pim", "mexgen", "mc")
+METHODS = METHOD_NAMES
 STAGES = ("predict", "measure", "update", "reward")
 TARGETS_MS = {("1 tag", "mexgen"): 8.0, ("1 tag", "pim"): 4.0, ("1 tag", "mc"): 10.0,
               ("4 tags", "mexgen"): 30.0}
@@ -133,7 +134,7 @@ def run(
     *,
     warmup: int = 5,
     settings: tuple[Setting, ...] = SETTINGS,
-    methods: tuple[str, ...] = METHODS,
+    methods: tuple[MethodName, ...] = METHODS,
     stream: IO[str] | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark and return the results (JSON-ready). With ``stream`` set, also print

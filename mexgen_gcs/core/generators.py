@@ -46,6 +46,16 @@ IntArray = NDArray[np.intp]
 BoolArray = NDArray[np.bool_]
 
 MethodName = Literal["pim", "mexgen", "mc"]
+METHOD_NAMES: tuple[MethodName, ...] = ("pim", "mexgen", "mc")
+"""The planner's measurement generators, defined here once."""
+
+
+def method_name(name: str) -> MethodName:
+    """``name`` as a MethodName; ValueError if it is not one."""
+    for m in METHOD_NAMES:
+        if m == name:
+            return m
+    raise ValueError(f"unknown planner method {name!r}; expected one of {', '.join(METHOD_NAMES)}")
 
 
 
@@ -92,8 +102,11 @@ class MeasurementGenerator(Protocol):
     """The measurement-generator role. ``rollouts`` is the number of independent rollouts the
     planner must run per action for this generator (1 unless it is Monte Carlo)."""
 
-    name: str
-    rollouts: int
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def rollouts(self) -> int: ...
 
     def generate(self, view: BeliefView, rng: np.random.Generator) -> GeneratedMeasurement: ...
 

@@ -36,8 +36,11 @@ PAPER_TRANSITION = ((0.975, 0.0125, 0.0125), (0.225, 0.775, 0.0), (0.225, 0.0, 0
 class MotionModel(Protocol):
     """The motion-model role: propagate states and draw initial velocities/modes."""
 
-    n_modes: int
-    speed_max_m_s: float
+    @property
+    def n_modes(self) -> int: ...
+
+    @property
+    def speed_max_m_s(self) -> float: ...
 
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
@@ -266,7 +269,7 @@ class CvIft:
     ) -> tuple[FloatArray, ModeArray]:
         state = _initial_velocity(xy, self.speed_min_m_s, self.speed_max_m_s, rng)
         pi = self.stationary_distribution()
-        mode = rng.choice(len(pi), size=xy.shape[0], p=pi).astype(np.int8)
+        mode = np.asarray(rng.choice(len(pi), size=xy.shape[0], p=pi), dtype=np.int8)
         return state, mode
 
 

@@ -29,7 +29,7 @@ def action_headings_rad(n_headings: int) -> FloatArray:
     """n equally spaced compass headings starting at north: 8 -> N, NE, E, ..., NW. (A,)."""
     if n_headings < 1:
         raise ValueError(f"n_headings must be >= 1 (got {n_headings})")
-    return np.arange(n_headings) * (2.0 * math.pi / n_headings)
+    return np.arange(n_headings, dtype=np.float64) * (2.0 * math.pi / n_headings)
 
 
 def compass_bearing_rad(from_xy: FloatArray, to_xy: FloatArray) -> float:
@@ -75,7 +75,7 @@ def fine_times_s(horizon_s: float, step_s: float) -> FloatArray:
     """PRUNE_SUBSTEPS times per step over the horizon, (K,): every PRUNE_SUBSTEPS-th is a step
     time (step_s, 2 step_s, ...), so one path evaluation serves pruning and the rollout."""
     n = max(1, math.ceil(horizon_s / step_s - 1e-9)) * PRUNE_SUBSTEPS
-    return (np.arange(n) + 1.0) * (step_s / PRUNE_SUBSTEPS)
+    return (np.arange(n, dtype=np.float64) + 1.0) * (step_s / PRUNE_SUBSTEPS)
 
 
 def inside_test(area: SearchArea) -> Callable[[FloatArray], NDArray[np.bool_]]:
@@ -112,4 +112,4 @@ def leaves_area(
     PRUNE_SUBSTEPS points per step (2.5 m apart at 10 m/s and 1 s steps) a path can only cut a
     corner of the polygon by less than that.
     """
-    return ~inside(points_m).all(axis=0)
+    return np.asarray(~inside(points_m).all(axis=0), dtype=np.bool_)

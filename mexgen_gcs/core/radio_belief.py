@@ -260,7 +260,7 @@ def shadow_conditioning(memory: ShadowMemory, idx: NDArray[np.intp], d_new: Floa
     cmat = shadow_var * np.exp(-dd / distance_m)
     cmat[np.diag_indices(idx.size)] += noise_var / memory.n[idx]
     c = shadow_var * np.exp(-d_new / distance_m)
-    beta = np.linalg.solve(cmat, c)
+    beta: FloatArray = np.linalg.solve(cmat, c).astype(np.float64, copy=False)
     return beta, max(shadow_var + noise_var - float(c @ beta), 1e-9)
 
 

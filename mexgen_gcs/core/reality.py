@@ -129,10 +129,10 @@ class RealityProfile:
 
     def describe(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
-        for name in self.__slots__:  # type: ignore[attr-defined]
+        for name in self.__slots__:
             v = getattr(self, name)
             out[name] = v if not isinstance(v, AntennaPattern) else {
-                k: getattr(v, k) for k in v.__slots__}  # type: ignore[attr-defined]
+                k: getattr(v, k) for k in v.__slots__}
         return out
 
 

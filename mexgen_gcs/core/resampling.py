@@ -38,7 +38,9 @@ def normalise_log_weights(log_w: FloatArray) -> tuple[FloatArray, float]:
     if np.any(bad):
         n = log_w.shape[-1]
         out = np.where(bad, -np.log(n), out)
-    return out, np.squeeze(total, axis=-1) if np.ndim(total) > 1 else float(total[0])
+    if np.ndim(total) > 1:
+        return out, np.squeeze(total, axis=-1)  # type: ignore[return-value]  # batch form
+    return out, float(total[0])
 
 
 def effective_sample_size(log_w: FloatArray) -> float:

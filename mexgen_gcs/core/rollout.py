@@ -72,6 +72,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -211,8 +212,9 @@ def rollout_gains(
             positions_m=xy[k],
             power_db=power[j],
             log_pd=log_pd[j],
-            mean_power=lambda p, rx_k=rx_k: _mean_power(radio, p, rx_k, yaw, offset, exponent),
-            detection_probability=radio.detection_probability,
+            mean_power=partial(_mean_power, radio, rx=rx_k, yaw=yaw, offset=offset,
+                               exponent=exponent),
+            detection_probability=radio.detection_probability,  # type: ignore[arg-type]
             noise_std_db=radio.noise_std_db,
             scratch=ws,
         )
@@ -288,12 +290,15 @@ def _radio_draws(beliefs: Sequence[PlanningBelief], n: int, n_pad: int, radio: R
     return out[0], out[1]
 
 
-def _mean_power(radio: RadioModel, pos: FloatArray, rx: FloatArray, yaw: FloatArray,
-                offset: Float32Array | None, exponent: Float32Array | None) -> FloatArray:
+def _mean_power(radio: RadioModel, pos: NDArray[np.floating], rx: NDArray[np.floating],
+                yaw: NDArray[np.floating], offset: Float32Array | None,
+                exponent: Float32Array | None) -> NDArray[np.floating]:
     """PIM's noiseless power at mean positions (T, A, R, 2) with the mean radio unknowns."""
+    pos64, rx64 = np.asarray(pos, np.float64), np.asarray(rx, np.float64)
+    yaw64 = np.asarray(yaw, np.float64)
     if offset is None and exponent is None:
-        return radio.power_db(pos, rx, yaw)
-    log_term, gain = radio.geometry(pos, rx, yaw)
+        return radio.power_db(pos64, rx64, yaw64)
+    log_term, gain = radio.geometry(pos64, rx64, yaw64)
     n = radio.path_loss_exponent if exponent is None else exponent.mean(axis=-1)
     b = 0.0 if offset is None else offset.mean(axis=-1)
     return radio.p0_db + b + n * log_term + gain

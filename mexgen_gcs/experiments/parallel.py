@@ -22,7 +22,7 @@ import signal
 import threading
 import time
 import traceback
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from typing import Any
@@ -53,7 +53,8 @@ def default_workers() -> int:
 
 
 def execute(specs: Sequence[RunSpec], *, workers: int | None = None,
-            scheduler: str | None = None, connect_timeout_s: float = 30.0) -> Iterator[Outcome]:
+            scheduler: str | None = None, connect_timeout_s: float = 30.0
+            ) -> Generator[Outcome, None, None]:
     """Run every spec; yield each outcome as it finishes. Closing the iterator early (or an
     exception in the consumer) cancels what has not started and stops the workers.
     ``connect_timeout_s``: how long to try to reach a Dask scheduler (ConfigError after)."""

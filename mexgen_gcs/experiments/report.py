@@ -155,9 +155,9 @@ def _follow_plots(out: Path, rows: Rows) -> list[Path]:
         ax_e, ax_c = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
         for j, method in enumerate(m for m in METHODS if any(
                 r["model"] == model and r["method"] == m for r in rows)):
-            series = [read_series(out, r) for r in rows
-                      if r["model"] == model and r["method"] == method]
-            series = [s for s in series if s is not None]
+            series = [s for s in (read_series(out, r) for r in rows
+                                  if r["model"] == model and r["method"] == method)
+                      if s is not None]
             if not series:
                 continue
             n = min(len(s["t_s"]) for s in series)
@@ -188,7 +188,7 @@ def _trajectory_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[P
     for model in [m for m in MODELS if any(r["model"] == m for r in rows)]:
         sel = [r for r in rows if r["model"] == model]
         start = min(int(r["start"]) for r in sel)
-        first = {}
+        first: dict[str, dict[str, str]] = {}
         for r in sorted(sel, key=lambda r: int(r["rep"])):
             if int(r["start"]) == start:
                 first.setdefault(r["method"], r)

@@ -274,7 +274,8 @@ def scenario_from_settings(settings: dict[str, Any]) -> Scenario:
     unknown = sorted(set(settings) - set(fields))
     if unknown:
         raise ConfigError(f"unknown scenario settings {unknown}")
-    return Scenario(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()}
+    return Scenario(**values)  # type: ignore[arg-type]  # checked against the fields above
 
 
 def method_config(method: str) -> tuple[str, str]:

@@ -200,7 +200,7 @@ class RunStore:
         if key in self.done:
             return
         buf = io.BytesIO()
-        np.savez_compressed(buf, **result.series)
+        np.savez_compressed(buf, **result.series)  # type: ignore[arg-type]  # numpy stubs
         _atomic_write(series_path(self.out_dir, *key), buf.getvalue())
         self._writer.writerow(result.row)
         self._flush()

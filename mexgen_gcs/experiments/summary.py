@@ -52,7 +52,7 @@ READINGS = (("", "criterion in use"), ("tight_", "tight reading, same runs"))
 
 def groups(rows: Rows) -> list[tuple[str, str, Rows]]:
     """(model, method, rows) in the canonical order."""
-    out = []
+    out: list[tuple[str, str, Rows]] = []
     for model in [m for m in MODELS if any(r["model"] == m for r in rows)]:
         for method in [m for m in METHODS if any(r["method"] == m for r in rows)]:
             sel = [r for r in rows if r["model"] == model and r["method"] == method]
@@ -237,8 +237,9 @@ def coverage_stats(rows: Rows, prefix: str = "") -> dict[str, Any]:
             if e != "" and rad != "":
                 errors.append(float(e))
                 radii.append(float(rad))
-    err, rad = np.array(errors), np.array(radii)
-    return {"tags": err.size, "inside": int((err <= rad).sum()), "errors": err, "radii": rad}
+    err, claimed = np.array(errors), np.array(radii)
+    return {"tags": int(err.size), "inside": int((err <= claimed).sum()), "errors": err,
+            "radii": claimed}
 
 
 def _coverage_table(rows: Rows, prefix: str) -> list[str]:

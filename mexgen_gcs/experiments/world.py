@@ -104,7 +104,7 @@ def make_truth(sc: Scenario, rng: np.random.Generator, batch: int = 8,
         model = truth_model(sc, rate_deg_s)
         s0, m0 = model.initial(initial.sample_uniform(m, rng), rng)
         traj, traj_modes = simulate(model, s0, m0, dt, steps, rng)
-        ok = area.contains(traj[: n_inside + 1, :, :2]).all(axis=0) if n_inside else (
+        ok = np.asarray(area.contains(traj[: n_inside + 1, :, :2]).all(axis=0)) if n_inside else (
             np.ones(m, dtype=bool))
         still: list[int] = []
         for j, tag in enumerate(pending):

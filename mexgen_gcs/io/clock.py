@@ -252,7 +252,7 @@ class VehicleClock:
     def _jump(self) -> float:
         return max(self.jump_s, 2.0 * self._rate)
 
-    def _predict(self, mono_s: float | np.ndarray) -> float | np.ndarray:
+    def _predict(self, mono_s: float) -> float:
         return self._offset + self._rate * mono_s
 
     # -- output ------------------------------------------------------------------------------

@@ -35,7 +35,8 @@ TRUTH_VERSION = 1
 
 def f(description: str, unit: str | None = None, frame: str | None = None, **kw: Any) -> Any:
     """A documented field: description, unit and frame land in the JSON Schema and the docs."""
-    extra = {k: v for k, v in (("unit", unit), ("frame", frame)) if v is not None}
+    extra: dict[str, Any] = {k: v for k, v in (("unit", unit), ("frame", frame))
+                             if v is not None}
     return Field(description=description, json_schema_extra=extra or None, **kw)
 
 
@@ -436,7 +437,7 @@ TRUTH_RECORDS: tuple[type[Record], ...] = (
 
 def _adapter(models: tuple[type[Record], ...]) -> TypeAdapter[Any]:
     """Validates one line (JSON) as the record type its `type` names."""
-    return TypeAdapter(Annotated[Union[models], Field(discriminator="type")])  # noqa: UP007
+    return TypeAdapter(Annotated[Union[models], Field(discriminator="type")])  # type: ignore[arg-type]  # noqa: UP007
 
 
 FLIGHT_ADAPTER: TypeAdapter[Any] = _adapter(FLIGHT_RECORDS)

@@ -89,8 +89,8 @@ class Commander:
 
     # -- expectations ------------------------------------------------------------------------
 
-    def expect(self, modes: frozenset[str] | set[str], *, grace: frozenset[str] | set[str] = (),
-               disarm_ok: bool = False) -> None:
+    def expect(self, modes: frozenset[str] | set[str], *,
+               grace: frozenset[str] | set[str] = frozenset(), disarm_ok: bool = False) -> None:
         """From now on the vehicle should be in one of `modes`; the current mode and `grace`
         are accepted for ``grace_s`` while the change lands."""
         current = self.vehicle.hub.latest.flight_mode

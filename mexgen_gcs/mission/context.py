@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from mexgen_gcs.core.mission_core import MissionCore, VehicleState
+from mexgen_gcs.core.mission_core import MissionCore
+from mexgen_gcs.core.planner import VehicleState
 from mexgen_gcs.io.clock import Clock
 from mexgen_gcs.io.vehicle import Telemetry, Vehicle
 from mexgen_gcs.mission.commander import HOLD, Commander

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.mission_core import PlanRequest
 from mexgen_gcs.core.planner import Planner, PlannerConfig, PlanResult
 
@@ -35,7 +36,8 @@ class PlanOutcome:
 def planner_config(mission: Any, method: str) -> PlannerConfig:
     p = mission.planner
     return PlannerConfig(
-        method=method, samples=p.samples, mc_rollouts=p.mc_rollouts, lookahead_s=p.lookahead_s,
+        method=method_name(method), samples=p.samples, mc_rollouts=p.mc_rollouts,
+        lookahead_s=p.lookahead_s,
         step_s=p.step_s, discount=p.discount, alpha=p.alpha, speed_m_s=mission.flight.speed_m_s,
         max_accel_m_s2=mission.flight.max_accel_m_s2, action_cost_weight=p.action_cost_weight)
 

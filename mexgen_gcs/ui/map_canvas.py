@@ -308,7 +308,7 @@ def draw_canvas(scene: MapScene, view: Viewport, width_cells: int, height_cells:
         canvas.put_text(vr, vc, heading_arrow(scene.vehicle_yaw_deg), "bold black on bright_red")
     # compass and scale bar
     canvas.put_text(0, w - 3, "N↑", "bold")
-    label, cells = scale_bar(view.m_per_dot, w)
-    canvas.put_text(h - 1, 1, "├" + "─" * max(cells - 2, 0) + "┤", "bold")
-    canvas.put_text(h - 1, 1 + max(cells, 2) + 1, label, "bold")
+    label, bar_cells = scale_bar(view.m_per_dot, w)
+    canvas.put_text(h - 1, 1, "├" + "─" * max(bar_cells - 2, 0) + "┤", "bold")
+    canvas.put_text(h - 1, 1 + max(bar_cells, 2) + 1, label, "bold")
     return canvas

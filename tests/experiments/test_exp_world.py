@@ -63,7 +63,7 @@ def test_truth_is_initialised_as_the_paper_says(kind: str, model: str) -> None:
     # positions uniform in the initial search space
     assert np.all(np.abs(states[0, :, :2]) <= sc.initial_half_m)
     speed0 = np.hypot(states[0, :, 2], states[0, :, 3])
-    if sc.truth_motion == "rw":
+    if sc.truth_motion in ("rw", "static"):
         assert np.all(speed0 == 0.0)
     else:
         lo, hi = sc.truth_speed_m_s

@@ -1,0 +1,77 @@
+"""The demo mission flown by `mexgen-gcs fly` against real PX4 SITL (SIH) at speed factor 4,
+the simulator's radios riding on PX4's GCS link (`python -m sim --radios-only`), as a user
+flies it: every tag localised and inside its claimed radius, landed, exit 0, and re-planned
+every 5 s of PX4's (simulated) time. PX4's home is put at the mission's home.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mexgen_gcs.core.geo import LocalFrame
+from mexgen_gcs.io.flightlog import read_flight_log
+from tests.px4.conftest import Px4Factory
+from tests.px4.px4_sitl import radios_on
+from tests.sim.sim_helpers import DEMO_MISSION
+
+pytestmark = pytest.mark.px4
+
+K = 4.0
+HOME = (-34.9212, 138.6011, 0.0)  # the demo mission's home
+TIMEOUT_S = 900.0
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+async def test_demo_mission_against_px4(px4_factory: Px4Factory, tmp_path: Path) -> None:
+    px4 = await asyncio.to_thread(px4_factory, speed_factor=K, home=HOME)
+    radio_port = _free_udp_port()
+    with radios_on(px4, DEMO_MISSION, radio_port=radio_port, truth_dir=tmp_path / "radios"):
+        proc = await asyncio.to_thread(
+            subprocess.run,
+            [sys.executable, "-m", "mexgen_gcs", "fly", str(DEMO_MISSION), "--headless",
+             "--connect", px4.mavsdk_url, "--radio", f"udp://127.0.0.1:{radio_port}",
+             "--log-dir", str(tmp_path / "flights"), "--seed", "1"],
+            capture_output=True, text=True, timeout=TIMEOUT_S)
+    print(proc.stdout[-3000:])
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    log_dir = next((tmp_path / "flights").iterdir())
+    log = read_flight_log(log_dir)
+    kinds = [r.get("kind") for r in log.of_type("event")]
+    assert "landed_and_disarmed" in kinds and "takeover" not in kinds
+    (result,) = log.of_type("result")
+    assert result["end_reason"] == "all_localised", result
+    # every localised tag inside the radius it claimed (truth: the radios' truth file)
+    truth: dict[str, tuple[float, float]] = {}
+    for line in (tmp_path / "radios" / "truth.jsonl").read_text().splitlines():
+        rec = json.loads(line)
+        if rec.get("type") == "tag":
+            truth[rec["tag"]] = (rec["x_m"], rec["y_m"])
+    frame = LocalFrame(*HOME)
+    localised = [r for r in log.of_type("event") if r.get("kind") == "tag_localised"]
+    assert {r["tag"] for r in localised} == {"T1", "T2", "T3", "T4"}
+    for r in localised:
+        e, n, _ = frame.to_enu(r["lat"], r["lon"], 0.0)
+        err = math.hypot(float(e) - truth[r["tag"]][0], float(n) - truth[r["tag"]][1])
+        print(f"{r['tag']}: after {r['after_s']} s, error {err:.1f} m, claimed {r['radius_m']} m")
+        assert err <= r["radius_m"], (r, err)
+    # the mission ran on PX4's clock: a plan every 5 s of its time
+    clock = [r for r in log.of_type("event") if r.get("kind") == "clock"]
+    assert clock and 0.85 * K < clock[0]["rate"] < 1.01 * K, clock
+    gaps = np.diff([r["t"] for r in log.of_type("plan")])
+    print(f"re-plan interval: mean {gaps.mean():.3f} s, std {gaps.std():.3f} s, "
+          f"min {gaps.min():.2f}, max {gaps.max():.2f} ({len(gaps)} gaps)")
+    assert abs(float(np.median(gaps)) - 5.0) < 0.3 and gaps.min() > 4.0, gaps
