@@ -37,7 +37,7 @@ HANDLERS: dict[str, str] = {
     "analyze": "mexgen_gcs.analysis.cli:cmd_analyze",
     "replay": "mexgen_gcs.analysis.cli:cmd_replay",
     "experiment": "mexgen_gcs.experiments.cli:cmd_experiment",
-    "bench": "mexgen_gcs.bench:cmd_bench",
+    "bench": "mexgen_gcs.bench.cli:cmd_bench",
 }
 
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from mexgen_gcs.bench import emit, pin_single_thread, time_calls
+from mexgen_gcs.bench.timing import emit, pin_single_thread, time_calls
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig
 from mexgen_gcs.core.motion import MotionName, make_motion_model

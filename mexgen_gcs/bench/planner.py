@@ -30,7 +30,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from mexgen_gcs.bench import pin_single_thread
+from mexgen_gcs.bench.timing import pin_single_thread
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.generators import METHOD_NAMES, MethodName
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
