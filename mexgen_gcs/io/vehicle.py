@@ -198,6 +198,14 @@ def route_mavsdk_log() -> None:
     _mavsdk_log_routed = True
 
 
+def mavsdk_reason(exc: BaseException) -> str:
+    """The reason of a failed MAVSDK call: its plugin error's public ``result`` (an enum such as
+    ``ActionResult.COMMAND_DENIED``) by name, else the exception's text."""
+    result = getattr(exc, "result", None)
+    name = getattr(result, "name", None)
+    return str(name) if name else str(exc)
+
+
 class MavsdkVehicle:
     """`Vehicle` through MAVSDK's native asyncio binding. Plugins live as long as this object."""
 
@@ -370,8 +378,7 @@ class MavsdkVehicle:
         except VehicleError:
             raise
         except Exception as exc:  # MAVSDK's ActionError, OffboardError, ...
-            result = getattr(exc, "_result", None)
-            raise VehicleError(what, str(result or exc)) from exc
+            raise VehicleError(what, mavsdk_reason(exc)) from exc
 
     async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool:
         from mavsdk.asyncio.plugins.geofence import FenceType, GeofenceData, Point, Polygon
