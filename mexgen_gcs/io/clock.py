@@ -17,7 +17,7 @@ On an aircraft both run at wall speed; on PX4 SITL at speed factor K the unix fi
 HOST's wall clock while ``time_boot_ms`` runs at the simulated rate (measured 3.90-3.92x at
 K = 4, 9.42-9.52x at K = 10). The vehicle's time is therefore ``boot_unix + time_boot_ms``
 (:class:`BootAnchor`), ``boot_unix`` being the unix time at which the boot clock read zero,
-fitted once from the first pairs spanning 3 s (``boot = rate (unix - boot_unix)``): exactly
+fitted once from the first pairs spanning 2 s (``boot = rate (unix - boot_unix)``): exactly
 ``unix - boot`` on an aircraft, the host time PX4 booted at on SITL. Every observer (the GCS,
 radios riding on the vehicle's telemetry) computes the same ``boot_unix`` whenever it starts
 listening. Without ``time_boot_ms`` (a MAVSDK without MAVLink-direct) the unix field is used.
@@ -57,35 +57,37 @@ def fit_boot_unix(samples: list[tuple[float, float]]) -> tuple[float, float]:
 
 class BootAnchor:
     """The vehicle's time from SYSTEM_TIME pairs: ``boot_unix + time_boot_ms / 1000`` (see the
-    module docstring). ``add`` returns the vehicle time of a pair, None until ``min_samples``
-    valid pairs span ``span_s`` of unix time; a boot clock that goes back (a reboot) starts
-    over."""
+    module docstring). ``add`` takes a pair with its arrival time and returns the vehicle-time
+    samples ``(vehicle_s, arrival)`` it makes available: none until ``min_samples`` valid pairs
+    span ``span_s`` of unix time, then every pair held so far (so the clock fit gets them all
+    at once), then one per pair. A boot clock that goes back (a reboot) starts over."""
 
-    def __init__(self, min_samples: int = 5, span_s: float = 3.0) -> None:
+    def __init__(self, min_samples: int = 3, span_s: float = 2.0) -> None:
         self.min_samples = min_samples
         self.span_s = span_s
         self.boot_unix_s: float | None = None
         self.rate = 1.0
-        self._pairs: list[tuple[float, float]] = []
+        self._pairs: list[tuple[float, float, float]] = []  # unix, boot, arrival
 
-    def add(self, unix_s: float, boot_s: float) -> float | None:
+    def add(self, unix_s: float, boot_s: float, arrival: float = 0.0
+            ) -> list[tuple[float, float]]:
         if not (math.isfinite(boot_s) and boot_s >= 0.0):
-            return None
+            return []
         if self._pairs and boot_s < self._pairs[-1][1]:  # rebooted
             self._pairs.clear()
             self.boot_unix_s = None
         if self.boot_unix_s is None:
             if not (math.isfinite(unix_s) and unix_s >= MIN_VALID_UNIX_S):
-                return None
-            self._pairs.append((unix_s, boot_s))
+                return []
+            self._pairs.append((unix_s, boot_s, arrival))
             if (len(self._pairs) < self.min_samples
                     or self._pairs[-1][0] - self._pairs[0][0] < self.span_s):
-                return None
-            self.boot_unix_s, self.rate = fit_boot_unix(self._pairs)
-            self._pairs = self._pairs[-1:]
-        else:
-            self._pairs = [(unix_s, boot_s)]
-        return self.boot_unix_s + boot_s
+                return []
+            self.boot_unix_s, self.rate = fit_boot_unix([(u, b) for u, b, _ in self._pairs])
+            held, self._pairs = self._pairs, self._pairs[-1:]
+            return [(self.boot_unix_s + b, m) for _, b, m in held]
+        self._pairs = [(unix_s, boot_s, arrival)]
+        return [(self.boot_unix_s + boot_s, arrival)]
 
 
 class Clock(Protocol):

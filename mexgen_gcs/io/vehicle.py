@@ -323,9 +323,8 @@ class MavsdkVehicle:
             except (KeyError, TypeError, ValueError) as exc:  # a malformed message
                 log.warning("SYSTEM_TIME ignored: %s", exc)
                 continue
-            vehicle_s = anchor.add(unix_s, boot_s)
-            if vehicle_s is not None:
-                self.hub.time_sample(vehicle_s, mono)
+            for vehicle_s, arrival in anchor.add(unix_s, boot_s, mono):
+                self.hub.time_sample(vehicle_s, arrival)
 
     async def _pump_unix_time(self, tel: Any) -> None:
         """SYSTEM_TIME (PX4 sends it at 1 Hz on the onboard link) in microseconds, stamped on

@@ -162,9 +162,11 @@ async def test_sleep_is_vehicle_seconds():
 def test_boot_anchor_on_an_aircraft_is_unix_minus_boot():
     from mexgen_gcs.io.clock import BootAnchor
     anchor = BootAnchor()
-    out = [anchor.add(1.7e9 + k, 300.0 + k) for k in range(6)]
-    assert out[:4] == [None] * 4  # five pairs spanning 3 s are needed first
-    assert out[4] == pytest.approx(1.7e9 + 4) and out[5] == pytest.approx(1.7e9 + 5)
+    out = [anchor.add(1.7e9 + k, 300.0 + k, float(k)) for k in range(5)]
+    assert out[:2] == [[], []]  # three pairs spanning 2 s are needed first
+    # then the pairs held so far all at once (with their arrival times), then one per pair
+    assert out[2] == [(pytest.approx(1.7e9 + k), float(k)) for k in range(3)]
+    assert out[3] == [(pytest.approx(1.7e9 + 3), 3.0)]
     assert anchor.rate == pytest.approx(1.0)
 
 
@@ -176,18 +178,19 @@ def test_boot_anchor_on_px4_sitl_runs_on_the_boot_clock():
     boot_host = 1.7e9
     for start in (10.0, 100.0):  # two observers, one arriving later
         anchor = BootAnchor()
-        got = [anchor.add(boot_host + w, 3.9 * w) for w in np.arange(start, start + 8.0)]
+        got = [anchor.add(boot_host + w, 3.9 * w, w) for w in np.arange(start, start + 8.0)]
         assert anchor.rate == pytest.approx(3.9)
         assert anchor.boot_unix_s == pytest.approx(boot_host)
-        assert got[-1] == pytest.approx(boot_host + 3.9 * (start + 7.0))
+        assert got[-1][0][0] == pytest.approx(boot_host + 3.9 * (start + 7.0))
 
 
 def test_boot_anchor_ignores_unset_time_and_restarts_on_reboot():
     from mexgen_gcs.io.clock import BootAnchor
     anchor = BootAnchor(min_samples=2, span_s=1.0)
-    assert anchor.add(0.0, 5.0) is None  # no GPS time yet
-    assert anchor.add(1.7e9, 6.0) is None
-    assert anchor.add(1.7e9 + 1, 7.0) == pytest.approx(1.7e9 + 1)
-    assert anchor.add(1.7e9 + 2, float("nan")) is None
-    assert anchor.add(1.7e9 + 50, 1.0) is None  # rebooted: anchors again
-    assert anchor.add(1.7e9 + 51, 2.0) == pytest.approx(1.7e9 + 51)
+    assert anchor.add(0.0, 5.0) == []  # no GPS time yet
+    assert anchor.add(1.7e9, 6.0) == []
+    assert [v for v, _ in anchor.add(1.7e9 + 1, 7.0)] == pytest.approx([1.7e9, 1.7e9 + 1])
+    assert anchor.add(1.7e9 + 2, float("nan")) == []
+    assert anchor.add(1.7e9 + 50, 1.0) == []  # rebooted: anchors again
+    assert [v for v, _ in anchor.add(1.7e9 + 51, 2.0)] == pytest.approx([1.7e9 + 50,
+                                                                          1.7e9 + 51])

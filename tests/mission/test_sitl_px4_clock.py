@@ -24,10 +24,16 @@ def test_mission_runs_on_the_boot_clock_when_system_time_unix_is_host_time(tmp_p
     plan_t = np.array([r["t"] for r in log.of_type("plan")])
     gaps = np.diff(plan_t)
     assert len(gaps) >= 15
-    assert abs(float(np.median(gaps)) - 5.0) < 0.1 and gaps.min() > 4.3, gaps
-    # before the clock is known (the boot clock needs pairs spanning 3 s) pulses stamped 10x
-    # ahead of the wall clock are refused; once it is, none
+    # 5 s of vehicle time (on the wall clock it would be 50 s); single plans run late by a
+    # fraction of a second when the machine is loaded (10x: 0.1 s wall is 1 s of vehicle time)
+    assert abs(float(np.median(gaps)) - 5.0) < 0.1, gaps
+    assert float(np.quantile(np.abs(gaps - 5.0), 0.9)) < 0.5, gaps
+    # before the clock is known (the boot clock needs pairs spanning 2 s of host time) pulses
+    # stamped 10x ahead of the wall clock are refused; once it is, none. Reject records sum up
+    # what was refused since the previous one (every 0.5 s wall = 5 s vehicle): allow one
+    # record's delay after the sync
     synced_t = next(r["t"] for r in log.of_type("event") if r.get("kind") == "clock")
-    late = [r for r in log.of_type("reject") if r["t"] > synced_t and "time_skew" in r["counts"]]
+    late = [r for r in log.of_type("reject")
+            if r["t"] > synced_t + 10.0 and "time_skew" in r["counts"]]
     assert not late, late
     assert log.of_type("detection"), "the radios' pulses were not taken"
