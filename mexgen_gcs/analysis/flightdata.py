@@ -26,7 +26,6 @@ from numpy.typing import NDArray
 
 from mexgen_gcs.analysis.series import (
     Detections,
-    PlanRecord,
     TagSeries,
     Telemetry,
     Track,
@@ -61,7 +60,7 @@ class FlightData:
     detections: Detections
     estimates: dict[str, TagSeries]
     clouds: dict[str, list[tuple[float, FloatArray]]]
-    plans: list[PlanRecord]
+    plans: list[rec.Plan]
     events: list[dict[str, Any]]
     """Event records as dicts: `t`, `type`, `kind` plus free fields."""
     errors: list[dict[str, Any]]
@@ -159,8 +158,7 @@ def load_flight(path: str | os.PathLike[str]) -> FlightData:
     for c in by_type.get("cloud", []):
         pts = np.asarray([[num(e), num(n)] for e, n in c.en_m], dtype=np.float64)
         clouds.setdefault(c.tag, []).append((c.t, pts.reshape(-1, 2)))
-    plans = [_plan(r) for r in by_type.get("plan", [])]
-    plans.sort(key=lambda p: p.t)
+    plans: list[rec.Plan] = sorted(by_type.get("plan", []), key=lambda p: p.t)
     events = [e.to_dict() for e in by_type.get("event", [])]
     results: list[Result] = by_type.get("result", [])
     result = results[-1] if results else None
@@ -232,15 +230,6 @@ def _estimates(recs: list[rec.Estimate], tag_ids: tuple[str, ...]) -> dict[str, 
             localised=np.array([r.localised for r in rows], dtype=bool),
             update=tuple(r.update for r in rows))
     return out
-
-
-def _plan(r: rec.Plan) -> PlanRecord:
-    return PlanRecord(
-        t=r.t, method=r.method, targets=tuple(r.targets), headings_deg=tuple(r.headings_deg),
-        rewards=tuple(r.rewards), chosen_heading_deg=r.chosen_heading_deg,
-        timing_ms=dict(r.timing_ms), vehicle_en_m=(num(r.vehicle_en_m[0]),
-                                                   num(r.vehicle_en_m[1])),
-        all_pruned=r.all_pruned)
 
 
 def _track(tel: Telemetry, det: Detections) -> Track:

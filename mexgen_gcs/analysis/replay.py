@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from mexgen_gcs.analysis.flightdata import FlightData
-from mexgen_gcs.analysis.series import PlanRecord
 from mexgen_gcs.core.mission_core import MissionCore, PlanRequest
 from mexgen_gcs.core.planner import TagBelief, VehicleState
-from mexgen_gcs.mission.planning import MissionPlanner, PlanOutcome
+from mexgen_gcs.io.records import Plan
+from mexgen_gcs.mission.planning import MissionPlanner
 from mexgen_gcs.mission.run import build_core
 
 METHODS = ("mexgen", "pim", "mc")
@@ -53,7 +53,8 @@ class ReplayStep:
     method: str
     method_heading_deg: float
     """What ``method`` chooses on the replayed belief."""
-    method_rewards: tuple[float, ...]
+    method_rewards: tuple[float | None, ...]
+    """None where the heading was pruned."""
     headings_deg: tuple[float, ...]
     estimate_gap_m: float | None
     """Largest distance between the replayed and recorded estimates of the targets."""
@@ -135,7 +136,7 @@ def replay(flight: FlightData, method: str, *, seed: int | None = None,
             pos = track.position_at(item.t)
             core.pulse(item.t, pos, math.radians(track.yaw_at(item.t)), item.listening)
         else:
-            assert isinstance(item, PlanRecord)
+            assert isinstance(item, Plan)
             step = _plan_step(flight, core, planner, item, method, plan_rng.spawn(1)[0])
             if step is not None:
                 steps.append(step)
@@ -145,13 +146,13 @@ def replay(flight: FlightData, method: str, *, seed: int | None = None,
 
 
 def _plan_step(flight: FlightData, core: MissionCore, planner: MissionPlanner,
-               rec: PlanRecord, method: str, rng: np.random.Generator) -> ReplayStep | None:
+               rec: Plan, method: str, rng: np.random.Generator) -> ReplayStep | None:
     targets = tuple(t for t in rec.targets if t in core.filters)
     if not targets:
         return None
     track = flight.track
     e, n = rec.vehicle_en_m
-    if not (math.isfinite(e) and math.isfinite(n)):
+    if e is None or n is None:
         e, n = (float(x) for x in track.position_at(rec.t)[:2])
     up = float(track.position_at(rec.t)[2])
     vehicle = VehicleState(np.array([e, n, up]), track.velocity_at(rec.t),
@@ -163,7 +164,7 @@ def _plan_step(flight: FlightData, core: MissionCore, planner: MissionPlanner,
         beliefs.append(TagBelief(tid, states, modes, core.motion, float(f.existence)))
     request = PlanRequest(rec.t, vehicle, tuple(beliefs))
     method_rng, = rng.spawn(1)
-    replayed: PlanOutcome = planner.plan(request, rec.method, rng)
+    replayed = planner.plan(request, rec.method, rng)
     other = replayed if method == rec.method else planner.plan(request, method, method_rng)
     gap: float | None = None
     for tid in targets:
@@ -179,7 +180,8 @@ def _plan_step(flight: FlightData, core: MissionCore, planner: MissionPlanner,
         recorded_method=rec.method, recorded_heading_deg=rec.chosen_heading_deg,
         recorded_all_pruned=rec.all_pruned, replayed_heading_deg=replayed.chosen_heading_deg,
         method=method, method_heading_deg=other.chosen_heading_deg,
-        method_rewards=other.rewards, headings_deg=other.headings_deg, estimate_gap_m=gap)
+        method_rewards=tuple(other.rewards), headings_deg=tuple(other.headings_deg),
+        estimate_gap_m=gap)
 
 
 def replay_table(steps: Sequence[ReplayStep], method: str) -> str:

@@ -8,7 +8,7 @@ degrees (0 north, clockwise); times are unix seconds of the mission clock.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -179,19 +179,3 @@ class TagSeries:
     def index_at(self, t: float) -> int | None:
         i = int(np.searchsorted(self.t, t, side="right")) - 1
         return i if i >= 0 else None
-
-
-@dataclass(frozen=True, slots=True)
-class PlanRecord:
-    """One logged planning decision."""
-
-    t: float
-    method: str
-    targets: tuple[str, ...]
-    headings_deg: tuple[float, ...]
-    rewards: tuple[float | None, ...]
-    """None where the action was pruned."""
-    chosen_heading_deg: float
-    timing_ms: Mapping[str, float]
-    vehicle_en_m: tuple[float, float]
-    all_pruned: bool

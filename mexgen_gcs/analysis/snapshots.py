@@ -18,8 +18,9 @@ import numpy as np
 from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.analysis.replay import ReplayStep
 from mexgen_gcs.analysis.truth import Truth
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.io.vehicle import Telemetry
-from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, TagView
+from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
 
 TRACK_POINTS = 600
 EVENT_LINES = 20
@@ -151,18 +152,13 @@ class _Builder:
             detections_last_min=recent, detections_total=k, last_rssi_db=last_rssi,
             cloud_en_m=cloud, truth_en_m=truth_en)
 
-    def _plan(self, t: float) -> tuple[PlanView | None, str]:
+    def _plan(self, t: float) -> tuple[Plan | None, float]:
+        """The plan in force at t and the time to the next one (0 after the last)."""
         i = int(np.searchsorted(self.plan_t, t, side="right")) - 1
         if i < 0:
-            return None, ""
-        p = self.f.plans[i]
+            return None, 0.0
         next_t = float(self.plan_t[i + 1]) if i + 1 < self.plan_t.size else math.inf
-        view = PlanView(
-            method=p.method, targets=p.targets, headings_deg=p.headings_deg,
-            rewards=tuple(-math.inf if r is None else r for r in p.rewards),
-            chosen_heading_deg=p.chosen_heading_deg, timing_ms=dict(p.timing_ms),
-            next_plan_in_s=max(next_t - t, 0.0) if math.isfinite(next_t) else 0.0, t=p.t)
-        return view, p.method
+        return self.f.plans[i], max(next_t - t, 0.0) if math.isfinite(next_t) else 0.0
 
     def at(self, t: float) -> MissionSnapshot:
         f = self.f
@@ -170,7 +166,7 @@ class _Builder:
         k = int(np.searchsorted(f.track.t, t, side="right"))
         track = tuple((float(x), float(y)) for x, y in self.track_xy[max(0, k - TRACK_POINTS):k])
         vehicle = track[-1] if track else (0.0, 0.0)
-        plan, method = self._plan(t)
+        plan, next_plan_in_s = self._plan(t)
         n_ev = int(np.searchsorted(self.event_t, t, side="right"))
         lines = [_event_line(f, e) for e in self.events[max(0, n_ev - EVENT_LINES):n_ev]]
         warnings: list[str] = []
@@ -190,7 +186,8 @@ class _Builder:
             end_reason=self.end_reason if t >= self.end_t else None, telemetry=tel,
             vehicle_en_m=vehicle, track_en_m=track,
             tags=tuple(self._tag(tid, t) for tid in f.tag_ids), plan=plan,
-            radio_heartbeat_age_s=hb_age,
+            next_plan_in_s=next_plan_in_s, radio_heartbeat_age_s=hb_age,
             radio_accepted=int(np.searchsorted(self.all_det_t, t, side="right")),
             radio_rejects={}, warnings=tuple(warnings), events=tuple(lines[-EVENT_LINES:]),
-            method=method or f.method, link_ok=tel.connected, area_en_m=self.area)
+            method=plan.method if plan is not None else f.method, link_ok=tel.connected,
+            area_en_m=self.area)

@@ -211,7 +211,7 @@ class VehicleState:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class PlanResult:
-    """An immutable planning decision with everything the log and the UI show."""
+    """An immutable planning decision (the flight log's form is `mission.planning.plan_record`)."""
 
     method: str
     target_ids: tuple[str, ...]
@@ -235,22 +235,6 @@ class PlanResult:
     """(A, H, 2) planned horizontal positions of each action at each look-ahead step."""
     lookahead_s: float = 0.0
     """The look-ahead used (stretched to reach a far belief when ``reach`` is set)."""
-
-    def to_record(self) -> dict[str, Any]:
-        """JSON-ready summary (rewards of pruned actions as null) for the flight log."""
-        return {
-            "method": self.method,
-            "targets": list(self.target_ids),
-            "headings_deg": [float(h) for h in self.headings_deg],
-            "rewards": [float(r) if math.isfinite(r) else None for r in self.rewards],
-            "pruned": [bool(p) for p in self.pruned],
-            "chosen": self.chosen,
-            "heading_deg": self.heading_deg,
-            "all_pruned": self.all_pruned,
-            "timing_s": dict(self.timing_s),
-            "total_s": self.total_s,
-            "lookahead_s": self.lookahead_s,
-        }
 
 
 class Planner:

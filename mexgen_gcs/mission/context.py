@@ -21,10 +21,10 @@ import numpy as np
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.planner import VehicleState
 from mexgen_gcs.io.clock import Clock
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.io.vehicle import Telemetry, Vehicle
 from mexgen_gcs.mission.commander import HOLD, Commander
 from mexgen_gcs.mission.logsink import MissionLog
-from mexgen_gcs.mission.planning import PlanOutcome
 from mexgen_gcs.mission.pose_history import Pose, PoseHistory
 from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.mission.state import (
@@ -100,7 +100,7 @@ class MissionContext:
         self.last_heartbeat_t = -math.inf
         self.heartbeat_listening: tuple[str, ...] | None = None
         self.next_plan_t = 0.0
-        self.last_plan: PlanOutcome | None = None
+        self.last_plan: Plan | None = None
         # for views
         self.events: collections.deque[str] = collections.deque(maxlen=200)
         self.track: collections.deque[tuple[float, float]] = collections.deque(maxlen=600)

@@ -14,6 +14,8 @@ import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
+from mexgen_gcs.io.records import Record
+
 log = logging.getLogger(__name__)
 
 
@@ -33,6 +35,11 @@ class MissionLog:
         self._monotonic = monotonic
         self.on_loss = on_loss
         """Called with a warning text when records start being lost (e.g. an in-memory event)."""
+
+    def write_record(self, record: Record) -> bool:
+        """Write a typed record (see `write`)."""
+        fields = record.to_dict()
+        return self.write(fields.pop("type"), **fields)
 
     def write(self, type: str, **fields: Any) -> bool:
         """Write one record; False if the disk refused it (counted)."""

@@ -2,13 +2,15 @@
 
 Runs in the controller's single planner thread; it keeps one core Planner per method (each
 with its reusable workspace), so switching method in flight costs nothing after the first plan.
+
+A decision has two forms: the core's `PlanResult` (arrays, inside the planner) and the flight
+log's `io.records.Plan`, which the log, the snapshots, the UI, analysis and replay all use.
 Frame: ENU inside; headings are compass degrees.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -16,21 +18,7 @@ import numpy as np
 from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.mission_core import PlanRequest
 from mexgen_gcs.core.planner import Planner, PlannerConfig, PlanResult
-
-
-@dataclass(frozen=True, slots=True)
-class PlanOutcome:
-    """A plan flattened to plain values for the log, snapshots and the UI."""
-
-    t: float
-    method: str
-    targets: tuple[str, ...]
-    headings_deg: tuple[float, ...]
-    rewards: tuple[float, ...]
-    """Expected reward per heading; -inf where pruned."""
-    chosen_heading_deg: float
-    all_pruned: bool
-    timing_ms: dict[str, float]
+from mexgen_gcs.io.records import Plan
 
 
 def planner_config(mission: Any, method: str) -> PlannerConfig:
@@ -57,16 +45,22 @@ class MissionPlanner:
                                              self.area)
         return self._planners[method]
 
-    def plan(self, request: PlanRequest, method: str, rng: np.random.Generator) -> PlanOutcome:
+    def plan(self, request: PlanRequest, method: str, rng: np.random.Generator) -> Plan:
         result = self.planner(method).plan(request.beliefs, request.vehicle, rng)
-        return outcome(request.t, result)
+        return plan_record(request.t, result, request.vehicle.xyz_m)
 
 
-def outcome(t: float, r: PlanResult) -> PlanOutcome:
-    timing = {k: 1e3 * v for k, v in r.timing_s.items()}
-    timing["total"] = 1e3 * r.total_s
-    return PlanOutcome(
-        t=t, method=r.method, targets=r.target_ids,
-        headings_deg=tuple(float(h) for h in r.headings_deg),
-        rewards=tuple(float(x) if math.isfinite(x) else -math.inf for x in r.rewards),
-        chosen_heading_deg=r.heading_deg, all_pruned=r.all_pruned, timing_ms=timing)
+def plan_record(t: float, r: PlanResult, vehicle_xyz_m: Any) -> Plan:
+    """The flight log's record of a decision (rewards of pruned headings as None), validated
+    by its type on the way."""
+    timing = {k: 1e3 * float(v) for k, v in r.timing_s.items()}
+    timing["total"] = 1e3 * float(r.total_s)
+    east, north = (float(v) for v in vehicle_xyz_m[:2])
+    return Plan(
+        t=float(t), type="plan", method=r.method, targets=list(r.target_ids),
+        headings_deg=[float(h) for h in r.headings_deg],
+        rewards=[float(x) if math.isfinite(x) else None for x in r.rewards],
+        chosen_heading_deg=float(r.heading_deg), timing_ms=timing,
+        vehicle_en_m=(east if math.isfinite(east) else None,
+                      north if math.isfinite(north) else None),
+        all_pruned=bool(r.all_pruned))

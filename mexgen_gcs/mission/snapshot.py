@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 from dataclasses import dataclass, field
 
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.io.vehicle import Telemetry
 
 
@@ -34,18 +35,6 @@ class TagView:
 
 
 @dataclass(frozen=True, slots=True)
-class PlanView:
-    method: str
-    targets: tuple[str, ...]
-    headings_deg: tuple[float, ...]
-    rewards: tuple[float, ...]
-    chosen_heading_deg: float
-    timing_ms: dict[str, float]
-    next_plan_in_s: float
-    t: float
-
-
-@dataclass(frozen=True, slots=True)
 class MissionSnapshot:
     t: float
     elapsed_s: float
@@ -56,7 +45,9 @@ class MissionSnapshot:
     vehicle_en_m: tuple[float, float]
     track_en_m: tuple[tuple[float, float], ...]
     tags: tuple[TagView, ...]
-    plan: PlanView | None
+    plan: Plan | None
+    """The last planning decision, as logged."""
+    next_plan_in_s: float
     radio_heartbeat_age_s: float
     radio_accepted: int
     radio_rejects: dict[str, int]

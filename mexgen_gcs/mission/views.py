@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, TagView
+from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
 from mexgen_gcs.mission.state import SUCCESS, MissionResult
 
 if TYPE_CHECKING:
@@ -51,11 +51,6 @@ def build_snapshot(c: MissionContext) -> MissionSnapshot:
             detections_last_min=recent, detections_total=c.core.detections[tid],
             last_rssi_db=c.core.last_rssi_db.get(tid),
             cloud_en_m=tuple(map(tuple, cloud.tolist())), truth_en_m=truth.get(tid)))
-    plan = None
-    if c.last_plan is not None:
-        p = c.last_plan
-        plan = PlanView(p.method, p.targets, p.headings_deg, p.rewards, p.chosen_heading_deg,
-                        p.timing_ms, max(c.next_plan_t - t, 0.0), p.t)
     e, n, _ = c.frame.to_enu(tel.lat_deg, tel.lon_deg, tel.abs_alt_m)
     warnings = []
     if not tel.connected or c.vehicle.hub.age_s() > c.mission.safety.link_loss_timeout_s:
@@ -79,7 +74,8 @@ def build_snapshot(c: MissionContext) -> MissionSnapshot:
         t=t, elapsed_s=t - c.t_start, state=c.state.value,
         end_reason=None if c.end_reason is None else c.end_reason.value,
         telemetry=tel, vehicle_en_m=(float(e), float(n)), track_en_m=tuple(c.track),
-        tags=tuple(tags), plan=plan, radio_heartbeat_age_s=hb_age,
+        tags=tuple(tags), plan=c.last_plan,
+        next_plan_in_s=max(c.next_plan_t - t, 0.0), radio_heartbeat_age_s=hb_age,
         radio_accepted=stats.accepted, radio_rejects=dict(stats.rejects),
         warnings=tuple(warnings), events=tuple(c.events)[-20:], method=c.method,
         link_ok=tel.connected, area_en_m=tuple(map(tuple, c.area.vertices_m.tolist())))

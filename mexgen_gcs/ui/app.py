@@ -151,7 +151,7 @@ class MexgenApp(App[None]):
         self.banner.show(snap.warnings, self._notice())
         self.map_view.show(scene_from_snapshot(snap))
         self.tags_table.show(snap.tags)
-        self.planner.show(snap.plan, snap.method)
+        self.planner.show(snap.plan, snap.method, snap.next_plan_in_s)
         self.event_log.show(snap.events)
         if isinstance(self.source, ReplaySource):
             self.query_one(ReplayBar).show(self.source.status())

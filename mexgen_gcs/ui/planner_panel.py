@@ -6,17 +6,19 @@ Headings are compass degrees (0 north, clockwise).
 
 from __future__ import annotations
 
+import math
+
 from rich.console import RenderableType
 from rich.text import Text
 from textual.widget import Widget
 
-from mexgen_gcs.mission.snapshot import PlanView
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.ui.format import bar, compass_name, finite, reward_fractions
 
 STAGE_NAMES = {"predict": "pred", "measure": "meas", "update": "upd", "reward": "rew"}
 
 
-def planner_text(plan: PlanView | None, method: str, width: int) -> Text:
+def planner_text(plan: Plan | None, method: str, width: int, next_plan_in_s: float) -> Text:
     """The panel's content for a plan (or the method alone before the first plan)."""
     text = Text(no_wrap=True, overflow="ellipsis")
     if plan is None:
@@ -34,11 +36,12 @@ def planner_text(plan: PlanView | None, method: str, width: int) -> Text:
     text.append("heading ", style="dim")
     text.append(f"{chosen:03.0f}° {compass_name(chosen)}", style="bold bright_white")
     text.append("\n")
-    fractions = reward_fractions(plan.rewards)
+    rewards = [math.nan if r is None else r for r in plan.rewards]  # None: pruned
+    fractions = reward_fractions(rewards)
     label_w = 9  # "NE  045° "
     value_w = 9
     bar_w = max(width - label_w - value_w - 2, 4)
-    for h, r, f in zip(plan.headings_deg, plan.rewards, fractions, strict=False):
+    for h, r, f in zip(plan.headings_deg, rewards, fractions, strict=False):
         is_chosen = abs(((h - chosen + 180.0) % 360.0) - 180.0) < 1e-6
         style = "bold green" if is_chosen else "green"
         text.append(f"{compass_name(h):<3} {h:03.0f}° ", style="bold" if is_chosen else "")
@@ -58,7 +61,7 @@ def planner_text(plan: PlanView | None, method: str, width: int) -> Text:
         text.append(f" = {total:.0f}", style="bold")
     text.append("\n")
     text.append("next re-plan in ", style="dim")
-    text.append(f"{plan.next_plan_in_s:.1f} s", style="bold")
+    text.append(f"{next_plan_in_s:.1f} s", style="bold")
     return text
 
 
@@ -67,14 +70,17 @@ class PlannerPanel(Widget):
 
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id)
-        self.plan: PlanView | None = None
+        self.plan: Plan | None = None
         self.method = "-"
+        self.next_plan_in_s = 0.0
         self.border_title = "Planner"
 
-    def show(self, plan: PlanView | None, method: str) -> None:
+    def show(self, plan: Plan | None, method: str, next_plan_in_s: float) -> None:
         self.plan = plan
         self.method = method
+        self.next_plan_in_s = next_plan_in_s
         self.refresh()
 
     def render(self) -> RenderableType:
-        return planner_text(self.plan, self.method, self.content_size.width)
+        return planner_text(self.plan, self.method, self.content_size.width,
+                            self.next_plan_in_s)

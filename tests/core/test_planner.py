@@ -24,6 +24,7 @@ from mexgen_gcs.core.planner import (
 )
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.errors import ConfigError, PlannerError
+from mexgen_gcs.mission.planning import plan_record
 
 METHODS = ["pim", "mexgen", "mc"]
 BIG_AREA = SearchArea.rectangle(-1000, 1000, -1000, 1000)
@@ -167,8 +168,8 @@ def test_outside_the_area_every_action_is_pruned_and_it_heads_for_the_centre():
     assert result.all_pruned and result.pruned.all()
     assert result.heading_deg == 180.0
     assert np.all(np.isneginf(result.rewards))
-    record = result.to_record()
-    assert record["rewards"] == [None] * 8 and record["all_pruned"] is True
+    record = plan_record(0.0, result, vehicle.xyz_m)
+    assert record.rewards == [None] * 8 and record.all_pruned is True
 
 
 # -- inputs, errors, numerical safety ---------------------------------------------------------
@@ -231,9 +232,10 @@ def test_duck_typed_inputs_and_a_reused_planner():
     first = planner.plan([belief], vehicle, np.random.default_rng(3))
     again = planner.plan([belief], vehicle, np.random.default_rng(3))
     np.testing.assert_array_equal(first.rewards, again.rewards)
-    record = first.to_record()
-    json.dumps(record)  # JSON-ready for the flight log
+    record = plan_record(12.5, first, vehicle.xyz_m).to_dict()
+    json.dumps(record, allow_nan=False)  # JSON-ready for the flight log
     assert record["targets"] == ["T1"] and len(record["headings_deg"]) == 8
+    assert record["vehicle_en_m"] == [10.0, 0.0] and record["timing_ms"]["total"] > 0
     assert first.paths_m.shape == (8, 8, 2) and not first.paths_m.flags.writeable
 
 

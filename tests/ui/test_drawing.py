@@ -126,9 +126,10 @@ def test_panel_texts(snapshot):
     s = status_text(snapshot, width=60).plain
     assert all(len(line) <= 60 for line in s.splitlines()) and len(s.splitlines()) >= 2
     assert "alt 49.6 m" in s and "bat 87%" in s  # whole items, never split
-    p = planner_text(snapshot.plan, "pim", 40).plain
+    p = planner_text(snapshot.plan, "pim", 40, snapshot.next_plan_in_s).plain
     assert "→ pim" in p  # switching method shows until the next plan
     assert "pruned" in p and "◀" in p
-    assert planner_text(None, "mexgen", 40).plain.startswith("mexgen  no plan yet")
+    assert "next re-plan in 3.2 s" in p
+    assert planner_text(None, "mexgen", 40, 0.0).plain.startswith("mexgen  no plan yet")
     cells = [c.plain for c in tag_row(snapshot.tags[2])]
     assert cells[0] == "T3" and cells[6] == "0" and cells[7] == "--" and cells[8] == "no"

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import asyncio
 import html
-import math
 import re
 from collections.abc import AsyncIterator
 from dataclasses import replace
@@ -17,8 +16,9 @@ from typing import Literal
 
 import numpy as np
 
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.io.vehicle import Telemetry
-from mexgen_gcs.mission.snapshot import MissionSnapshot, PlanView, TagView
+from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
 
 AREA = ((-500.0, -100.0), (500.0, -100.0), (500.0, 900.0), (-500.0, 900.0))
 HEADINGS = tuple(float(h) for h in range(0, 360, 45))
@@ -52,12 +52,12 @@ def make_snapshot(t: float = 1000.0, *, state: str = "searching",
                  truth=(-200.0, 150.0) if truth else None),
         make_tag("T4", 150_460_000, 350.0, 250.0, rng, truth=(350.0, 250.0) if truth else None),
     )
-    rewards = (0.112, 0.305, 0.412, 0.520, 0.233, -math.inf, 0.051, 0.198)
-    plan = PlanView(method=method, targets=("T2",), headings_deg=HEADINGS, rewards=rewards,
-                    chosen_heading_deg=135.0,
-                    timing_ms={"predict": 12.0, "measure": 31.0, "update": 8.0,
-                               "reward": 5.0, "total": 57.0},
-                    next_plan_in_s=3.2, t=t - 1.8)
+    rewards = [0.112, 0.305, 0.412, 0.520, 0.233, None, 0.051, 0.198]  # None: pruned
+    plan = Plan(t=t - 1.8, type="plan", method=method, targets=["T2"],
+                headings_deg=list(HEADINGS), rewards=rewards, chosen_heading_deg=135.0,
+                timing_ms={"predict": 12.0, "measure": 31.0, "update": 8.0,
+                           "reward": 5.0, "total": 57.0},
+                vehicle_en_m=vehicle_en_m, all_pruned=False)
     tel = Telemetry(connected=True, lat_deg=-34.9178, lon_deg=138.5998, abs_alt_m=49.6,
                     rel_alt_m=49.6, v_north_m_s=-6.0, v_east_m_s=8.0, yaw_deg=135.0,
                     armed=armed, in_air=armed, flight_mode="OFFBOARD" if armed else "HOLD",
@@ -73,6 +73,7 @@ def make_snapshot(t: float = 1000.0, *, state: str = "searching",
     return MissionSnapshot(
         t=t, elapsed_s=t - 600.0, state=state, end_reason=end_reason, telemetry=tel,
         vehicle_en_m=vehicle_en_m, track_en_m=track, tags=tags, plan=plan,
+        next_plan_in_s=3.2,
         radio_heartbeat_age_s=0.4, radio_accepted=120, radio_rejects={}, warnings=warnings,
         events=evs, method=method, link_ok=True, area_en_m=AREA)
 

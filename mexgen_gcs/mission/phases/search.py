@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 from mexgen_gcs.errors import PlannerError, VehicleError
+from mexgen_gcs.io.records import Plan
 from mexgen_gcs.mission import safety
 from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.guidance import (
@@ -30,7 +31,7 @@ from mexgen_gcs.mission.guidance import (
     velocity_setpoint,
 )
 from mexgen_gcs.mission.phases.common import SETPOINT_HZ, supervised
-from mexgen_gcs.mission.planning import MissionPlanner, PlanOutcome
+from mexgen_gcs.mission.planning import MissionPlanner
 from mexgen_gcs.mission.state import EndReason, MissionState
 
 SAFETY_HZ = 5.0
@@ -109,7 +110,7 @@ async def planner_loop(ctx: MissionContext, planner: MissionPlanner,
     one is skipped; the vehicle holds while planning is late."""
     interval = ctx.mission.planner.replan_interval_s
     loop = asyncio.get_running_loop()
-    running: asyncio.Future[PlanOutcome] | None = None
+    running: asyncio.Future[Plan] | None = None
     due = ctx.clock.now()
     while True:
         t = ctx.clock.now()
@@ -129,7 +130,7 @@ async def planner_loop(ctx: MissionContext, planner: MissionPlanner,
                 budget = ctx.clock.wall_seconds(interval)
                 done, _ = await asyncio.wait({running}, timeout=max(budget, 0.05))
                 if done:
-                    apply_plan(ctx, running, request.vehicle.xyz_m)
+                    apply_plan(ctx, running)
                 else:
                     running.add_done_callback(lambda f: _late(ctx, f))
                     hold(ctx, "planner_overrun")
@@ -142,8 +143,7 @@ async def planner_loop(ctx: MissionContext, planner: MissionPlanner,
         await ctx.clock.sleep(due - now)
 
 
-def apply_plan(ctx: MissionContext, fut: asyncio.Future[PlanOutcome],
-               vehicle_xyz_m: np.ndarray) -> None:
+def apply_plan(ctx: MissionContext, fut: asyncio.Future[Plan]) -> None:
     """Use a finished plan: a planner error holds; any other exception is a fault."""
     try:
         outcome = fut.result()
@@ -155,14 +155,10 @@ def apply_plan(ctx: MissionContext, fut: asyncio.Future[PlanOutcome],
     if ctx.hold_reason in ("planner_error", "planner_overrun"):
         ctx.hold_reason = None
     ctx.heading_deg = outcome.chosen_heading_deg
-    ctx.log.write("plan", t=outcome.t, method=outcome.method, targets=outcome.targets,
-                  headings_deg=outcome.headings_deg,
-                  rewards=[r if math.isfinite(r) else None for r in outcome.rewards],
-                  chosen_heading_deg=outcome.chosen_heading_deg, timing_ms=outcome.timing_ms,
-                  vehicle_en_m=vehicle_xyz_m[:2], all_pruned=outcome.all_pruned)
+    ctx.log.write_record(outcome)
 
 
-def _late(ctx: MissionContext, fut: asyncio.Future[PlanOutcome]) -> None:
+def _late(ctx: MissionContext, fut: asyncio.Future[Plan]) -> None:
     """A late plan finished: dropped (the vehicle has moved on), counted."""
     ctx.count("plans_late")
     if not fut.cancelled() and fut.exception() is not None:
