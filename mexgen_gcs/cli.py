@@ -15,6 +15,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from mexgen_gcs import __version__
+from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.errors import ConfigError, MexgenError
 
 EXIT_OK = 0
@@ -22,7 +23,6 @@ EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 
 DEFAULT_CONNECT = "udpin://0.0.0.0:14540"
-METHODS = ("mexgen", "pim", "mc")
 #: experiment choices, spelled here so ``--help`` imports nothing heavy; tests/test_cli_choices.py
 #: checks them against experiments.scenario and core.reality, where they are defined
 EXPERIMENT_MODELS = ("static", "rw", "cv", "cv-ift", "cv-ift-mismatch")
@@ -32,8 +32,8 @@ ESTIMATORS = ("classic", "robust")
 
 #: subcommand -> "module:function" of its handler.
 HANDLERS: dict[str, str] = {
-    "sitl": "mexgen_gcs.mission.run:cmd_sitl",
-    "fly": "mexgen_gcs.mission.run:cmd_fly",
+    "sitl": "mexgen_gcs.ui.commands:cmd_sitl",
+    "fly": "mexgen_gcs.ui.commands:cmd_fly",
     "analyze": "mexgen_gcs.analysis.cli:cmd_analyze",
     "replay": "mexgen_gcs.analysis.cli:cmd_replay",
     "experiment": "mexgen_gcs.experiments.cli:cmd_experiment",

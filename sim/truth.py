@@ -11,58 +11,37 @@ Written append-only and flushed per record, so a crash loses at most the line be
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-FILENAME = "truth.jsonl"
+from mexgen_gcs.io.jsonl import JsonlWriter
+from mexgen_gcs.io.truthfile import TRUTH_FILE
 
-
-def _clean(value: Any) -> Any:
-    """JSON has no NaN/inf: write them as null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    return value
+FILENAME = TRUTH_FILE
 
 
 class TruthWriter:
-    """Appends records to ``DIR/truth.jsonl``; with ``directory=None`` it writes nothing."""
+    """Writes ``DIR/truth.jsonl`` through the product's JSON-lines writer (`io.jsonl`: the
+    record types are `io.records`, read back by `io.truthfile`); with ``directory=None`` it
+    writes nothing. Refuses a directory that already holds a truth file (FileExistsError):
+    two worlds in one file could not be told apart."""
 
     def __init__(self, directory: Path | None) -> None:
         self.path: Path | None = None
-        self._file: IO[str] | None = None
-        self.records = 0
+        self._writer: JsonlWriter | None = None
         if directory is not None:
-            directory.mkdir(parents=True, exist_ok=True)
             self.path = directory / FILENAME
-            self._file = self.path.open("a", encoding="utf-8")
+            self._writer = JsonlWriter(self.path)
+
+    @property
+    def records(self) -> int:
+        return self._writer.records if self._writer is not None else 0
 
     def write(self, t: float, record_type: str, **fields: Any) -> None:
-        if self._file is None:
-            return
-        record = {"t": round(t, 6), "type": record_type} | _clean(fields)
-        self._file.write(json.dumps(record, separators=(",", ":")) + "\n")
-        self._file.flush()
-        self.records += 1
+        if self._writer is not None:
+            self._writer.write(record_type, t=round(t, 6), **fields)
 
     def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
-            self._file = None
-
-
-def read_truth(path: Path) -> list[dict[str, Any]]:
-    """All complete records of a truth file (a torn last line is skipped)."""
-    out: list[dict[str, Any]] = []
-    with path.open(encoding="utf-8") as f:
-        for line in f:
-            try:
-                out.append(json.loads(line))
-            except json.JSONDecodeError:
-                continue
-    return out
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None

@@ -24,13 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from mexgen_gcs.analysis.flightdata import FlightData
+from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.mission_core import MissionCore, PlanRequest
 from mexgen_gcs.core.planner import TagBelief, VehicleState
 from mexgen_gcs.io.records import Plan
 from mexgen_gcs.mission.planning import MissionPlanner
 from mexgen_gcs.mission.run import build_core
-
-METHODS = ("mexgen", "pim", "mc")
 
 
 def default_other_method(recorded: str) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 
 from mexgen_gcs.bench.timing import pin_single_thread
 from mexgen_gcs.core.area import SearchArea
-from mexgen_gcs.core.generators import METHOD_NAMES, MethodName
+from mexgen_gcs.core.generators import METHODS as METHOD_NAMES
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.planner import Planner, PlannerConfig, TagBelief, VehicleState
 from mexgen_gcs.core.radio import RadioModel
@@ -134,7 +134,7 @@ def run(
     *,
     warmup: int = 5,
     settings: tuple[Setting, ...] = SETTINGS,
-    methods: tuple[MethodName, ...] = METHODS,
+    methods: tuple[str, ...] = METHODS,
     stream: IO[str] | None = None,
 ) -> dict[str, Any]:
     """Run the benchmark and return the results (JSON-ready). With ``stream`` set, also print

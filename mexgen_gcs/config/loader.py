@@ -188,7 +188,7 @@ def _problems(err: Any, data: Any) -> list[Problem]:
         return [Problem((*path, "kind"), f"expected one of {', '.join(tags)}; found "
                         f"{found!r}{_did_you_mean(found, tags)}")]
     found = err.get("input")
-    if kind == "literal_error":
+    if kind in ("literal_error", "enum"):  # a Literal or an Enum field
         choices = re.findall(r"'([^']*)'", ctx.get("expected", ""))
         hint = _did_you_mean(str(found), choices) if isinstance(found, str) else ""
         if isinstance(found, bool):

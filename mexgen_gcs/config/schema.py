@@ -20,6 +20,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, model_validator
 
 from mexgen_gcs.config.urls import parse_udp_url
+from mexgen_gcs.core.generators import Method
 
 KeyPath = tuple[str | int, ...]
 
@@ -318,9 +319,9 @@ class FilterSection(Section):
 class Planner(Section):
     """Information-gain planner: which measurement generator and its horizon."""
 
-    method: Literal["mexgen", "pim", "mc"] = Field(
-        "mexgen", description="Measurement generator: mexgen (MexGen-M), pim or mc (MC-M)."
-    )
+    method: Method = Field(
+        Method.MEXGEN,
+        description="Measurement generator: mexgen (MexGen-M), pim or mc (MC-M).")
     samples: Int = Field(512, ge=1, le=1_000_000, description="MexGen samples M.")
     mc_rollouts: Int = Field(8, ge=1, le=10_000, description="MC rollouts per action (MC-M).")
     n_particles: Int = Field(1000, ge=10, le=1_000_000,

@@ -30,10 +30,11 @@ checked against a linear model as well as the radio model.
 
 from __future__ import annotations
 
+import enum
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar, Literal, Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,17 +46,30 @@ FloatArray = NDArray[np.floating]
 IntArray = NDArray[np.intp]
 BoolArray = NDArray[np.bool_]
 
-MethodName = Literal["pim", "mexgen", "mc"]
-METHOD_NAMES: tuple[MethodName, ...] = ("pim", "mexgen", "mc")
-"""The planner's measurement generators, defined here once."""
+
+class Method(enum.StrEnum):
+    """The planner's measurement generators, defined here once; the values are the names in
+    mission files, command lines and logs (a member equals its value as a string)."""
+
+    MEXGEN = "mexgen"
+    """MexGen-M: M samples of the measurement's distribution, stratified over the belief."""
+    PIM = "pim"
+    """The predicted ideal measurement at the mean state."""
+    MC = "mc"
+    """MC-M: Monte Carlo rollouts, one sampled state and measurement each."""
 
 
-def method_name(name: str) -> MethodName:
-    """``name`` as a MethodName; ValueError if it is not one."""
-    for m in METHOD_NAMES:
-        if m == name:
-            return m
-    raise ValueError(f"unknown planner method {name!r}; expected one of {', '.join(METHOD_NAMES)}")
+METHODS: tuple[str, ...] = tuple(m.value for m in Method)
+"""The method names, in the order menus and tables show them."""
+
+
+def method_name(name: str) -> Method:
+    """``name`` as a Method; ValueError naming the choices if it is not one."""
+    try:
+        return Method(name)
+    except ValueError:
+        raise ValueError(f"unknown planner method {name!r}; expected one of "
+                         f"{', '.join(METHODS)}") from None
 
 
 
@@ -229,13 +243,13 @@ def take_rows(
 
 
 def make_generator(
-    method: MethodName, samples: int = 512, mc_rollouts: int = 8, stratified: bool = True
+    method: Method | str, samples: int = 512, mc_rollouts: int = 8, stratified: bool = True
 ) -> MeasurementGenerator:
     """The generator for a planner method name: "pim" | "mexgen" (samples) | "mc" (rollouts)."""
-    if method == "pim":
+    if method == Method.PIM:
         return PredictedIdealMeasurement()
-    if method == "mexgen":
+    if method == Method.MEXGEN:
         return MexGen(samples, stratified)
-    if method == "mc":
+    if method == Method.MC:
         return MonteCarlo(mc_rollouts)
     raise ValueError(f"unknown planner method {method!r}; expected pim, mexgen or mc")

@@ -61,7 +61,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.area import SearchArea
-from mexgen_gcs.core.generators import MeasurementGenerator, MethodName, make_generator
+from mexgen_gcs.core.generators import METHODS, MeasurementGenerator, Method, make_generator
 from mexgen_gcs.core.likelihood import detection_table
 from mexgen_gcs.core.motion import ModeArray, MotionModel
 from mexgen_gcs.core.paths import (
@@ -95,7 +95,7 @@ _COURSE_MIN_SPEED_M_S = 0.5
 class PlannerConfig:
     """Planner settings; the mission's ``planner`` and ``flight`` sections map onto these."""
 
-    method: MethodName = "mexgen"
+    method: Method | str = Method.MEXGEN
     """Measurement generator: "pim" | "mexgen" | "mc"."""
     samples: int = 512
     """MexGen M: measurement samples per action and step."""
@@ -134,7 +134,7 @@ class PlannerConfig:
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
-            ("method", self.method in ("pim", "mexgen", "mc"), "one of pim, mexgen, mc"),
+            ("method", self.method in METHODS, "one of " + ", ".join(METHODS)),
             ("samples", self.samples >= 1, ">= 1"),
             ("mc_rollouts", self.mc_rollouts >= 1, ">= 1"),
             ("step_s", self.step_s > 0.0, "> 0"),

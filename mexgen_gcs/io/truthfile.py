@@ -103,3 +103,18 @@ class TruthTail:
                 out.append(rec)
         self._offset += end
         return out
+
+
+class TagPositions:
+    """The latest true position of each tag (ENU metres) in a running simulator's truth file,
+    for showing beside the estimates."""
+
+    def __init__(self, path: Path) -> None:
+        self.tail = TruthTail(path)
+        self._latest: dict[str, tuple[float, float]] = {}
+
+    def positions(self) -> dict[str, tuple[float, float]]:
+        for rec in self.tail.read_new():
+            if isinstance(rec, TagTruth):
+                self._latest[rec.tag] = (rec.x_m, rec.y_m)
+        return dict(self._latest)

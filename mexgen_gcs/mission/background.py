@@ -18,6 +18,7 @@ import sys
 import time
 from collections.abc import Awaitable, Callable
 
+from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.io.vehicle import StatusText
 from mexgen_gcs.mission import views
 from mexgen_gcs.mission.context import MissionContext
@@ -39,7 +40,6 @@ SIGNAL_STOPS = {
     "SIGHUP": EndReason.SIGNAL_SIGHUP,
     "SIGTERM": EndReason.SIGNAL_SIGTERM,
 }
-METHODS = ("mexgen", "pim", "mc")
 
 
 async def contained(ctx: MissionContext, name: str, task: Callable[[], Awaitable[None]],

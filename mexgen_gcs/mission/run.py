@@ -1,4 +1,6 @@
-"""`mexgen-gcs sitl` and `mexgen-gcs fly`, and the scripted API `run_sitl`.
+"""Flying a mission with real ports (`fly_mission`) and the scripted-SITL API `run_sitl`; the
+command-line handlers of `mexgen-gcs sitl` and `fly` (which add the terminal UI) are in
+`ui.commands`.
 
 ``run_sitl(mission, seed=..., speedup=..., overrides=...)`` starts ``python -m sim`` as a child
 process on matching loopback ports, flies the mission through the real MAVSDK and UDP radio
@@ -8,10 +10,8 @@ simulator's ground truth. ``fly`` is the same without the child process.
 
 from __future__ import annotations
 
-import argparse
 import asyncio
 import copy
-import json
 import logging
 import math
 import os
@@ -21,7 +21,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -32,14 +32,18 @@ import yaml
 
 from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
 from mexgen_gcs.core.mission_core import MissionCore
-from mexgen_gcs.errors import ConfigError, MexgenError
+from mexgen_gcs.errors import ConfigError, LogFormatError, MexgenError
 from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
 from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
+from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
 from mexgen_gcs.io.vehicle import MavsdkVehicle
 from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
 
 log = logging.getLogger(__name__)
+
+MissionRunner = Callable[[MissionController], Awaitable[MissionResult]]
+"""Flies a controller to its result with something attached (``ui.app.run_with_ui``)."""
 
 DEFAULT_MAVLINK_PORT = 14540
 DEFAULT_RADIO_PORT = 14600
@@ -53,10 +57,10 @@ class SitlPorts:
     @classmethod
     def free(cls) -> SitlPorts:
         """Two free UDP ports on loopback (for tests and parallel batches)."""
-        return cls(_free_udp_port(), _free_udp_port())
+        return cls(free_udp_port(), free_udp_port())
 
 
-def _free_udp_port() -> int:
+def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
@@ -83,7 +87,7 @@ def apply_overrides(mission: Any, overrides: Mapping[str, Any] | None) -> Any:
     return parse_mission(text, source=f"{mission.source_path or '<mission>'} + overrides")
 
 
-def _make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: int) -> Path:
+def make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: int) -> Path:
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
     d = Path(base) / f"{stamp}-{mission.name}-{method}-s{seed}"
     n = 1
@@ -114,9 +118,10 @@ async def fly_mission(
     seed: int,
     options: ControllerOptions | None = None,
     truth_path: Path | None = None,
-    ui: bool = False,
+    runner: MissionRunner | None = None,
 ) -> MissionResult:
-    """Fly one mission with real ports. The caller owns any simulator process."""
+    """Fly one mission with real ports. The caller owns any simulator process. ``runner``
+    flies the controller with something attached (the terminal UI); default: headless."""
     rng = np.random.default_rng(seed)
     core = build_core(mission, rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now)
@@ -124,16 +129,15 @@ async def fly_mission(
                          clock=clock.now) as flight_log:
         async with RadioReceiver(radio_url, policy) as receiver:
             vehicle = MavsdkVehicle()
-            truth = TruthTail(truth_path, mission) if truth_path is not None else None
+            truth = TagPositions(truth_path) if truth_path is not None else None
             controller = MissionController(
                 mission, vehicle, receiver, clock, core, flight_log, method=method,
                 rng=rng.spawn(1)[0], connect_url=connect_url, options=options,
                 truth=truth.positions if truth is not None else None)
             signals = _abort_on_signals(controller)
             try:
-                run_with_ui = _ui_runner() if ui else None
-                if run_with_ui is not None:
-                    result = await run_with_ui(controller)
+                if runner is not None:
+                    result = await runner(controller)
                 else:
                     result = await controller.run()
             finally:
@@ -155,47 +159,6 @@ def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
     loop.add_signal_handler(signal.SIGTERM, controller.request, "signal:SIGTERM")
     loop.add_signal_handler(signal.SIGHUP, controller.request, "signal:SIGHUP")
     return [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
-
-
-def _ui_runner() -> Any:
-    """The terminal UI's entry point, or None (with a note) when it cannot be loaded."""
-    try:
-        from mexgen_gcs.ui.app import run_with_ui
-    except ImportError as exc:
-        print(f"terminal UI unavailable ({exc}); flying headless", file=sys.stderr)
-        return None
-    return run_with_ui
-
-
-class TruthTail:
-    """The simulator's latest tag truth positions (ENU), read from truth.jsonl on demand."""
-
-    def __init__(self, path: Path, mission: Any) -> None:
-        self.path = path
-        self.frame = mission.local_frame()
-        self._pos = 0
-        self._latest: dict[str, tuple[float, float]] = {}
-
-    def positions(self) -> dict[str, tuple[float, float]]:
-        try:
-            with open(self.path, encoding="utf-8") as fh:
-                fh.seek(self._pos)
-                for line in fh:
-                    if not line.endswith("\n"):
-                        break
-                    self._pos += len(line.encode("utf-8"))
-                    self._ingest(line)
-        except OSError:
-            pass
-        return dict(self._latest)
-
-    def _ingest(self, line: str) -> None:
-        try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            return
-        if rec.get("type") == "tag" and "x_m" in rec and "y_m" in rec:
-            self._latest[str(rec["tag"])] = (float(rec["x_m"]), float(rec["y_m"]))
 
 
 def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: SitlPorts,
@@ -246,7 +209,7 @@ def run_sitl(
     ports: SitlPorts | None = None,
     sim_args: list[str] | None = None,
     options: ControllerOptions | None = None,
-    ui: bool = False,
+    runner: MissionRunner | None = None,
     time_scale: float | None = None,
 ) -> MissionResult:
     """Fly a mission against the built-in simulator; the scripted-SITL API.
@@ -262,7 +225,7 @@ def run_sitl(
         overrides = {**(overrides or {}), "planner.method": method}
     m = apply_overrides(m, overrides)
     chosen = m.planner.method
-    out = _make_log_dir(log_dir, m, chosen, seed)
+    out = make_log_dir(log_dir, m, chosen, seed)
     resolved = out / "mission.yaml"
     resolved.write_text(yaml.safe_dump(dump_resolved(m), sort_keys=False), encoding="utf-8")
     ports = ports or SitlPorts()
@@ -273,11 +236,11 @@ def run_sitl(
         result = asyncio.run(fly_mission(
             m, connect_url=f"udpin://127.0.0.1:{ports.mavlink}",
             radio_url=f"udp://127.0.0.1:{ports.radio}", clock=clock, log_dir=out,
-            method=chosen, seed=seed, options=options, truth_path=out / "truth.jsonl", ui=ui))
+            method=chosen, seed=seed, options=options, truth_path=out / TRUTH_FILE, runner=runner))
     finally:
         code = stop_simulator(proc)
         log.info("simulator exited with %s", code)
-    attach_truth_errors(result, out / "truth.jsonl", m)
+    attach_truth_errors(result, out / TRUTH_FILE, m)
     return result
 
 
@@ -285,16 +248,14 @@ def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -
     """Add `error_m` per localised tag from the simulator's truth at localisation time."""
     if not truth_path.exists():
         return
+    try:
+        truth = read_truth_file(truth_path)
+    except (LogFormatError, OSError) as exc:
+        print(f"truth file not scored: {exc}", file=sys.stderr)
+        return
     history: dict[str, list[tuple[float, float, float]]] = {}
-    with open(truth_path, encoding="utf-8") as fh:
-        for line in fh:
-            try:
-                rec = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if rec.get("type") == "tag":
-                history.setdefault(str(rec["tag"]), []).append(
-                    (float(rec["t"]), float(rec["x_m"]), float(rec["y_m"])))
+    for rec in truth.tags():
+        history.setdefault(rec.tag, []).append((rec.t, rec.x_m, rec.y_m))
     for tid, info in result.localised.items():
         rows = history.get(tid)
         if not rows:
@@ -321,75 +282,3 @@ def summary_text(result: MissionResult) -> str:
         lines.append("  radio rejects: " + ", ".join(f"{k}={v}" for k, v in result.rejects.items()))
     lines.append(f"  log: {result.log_dir}")
     return "\n".join(lines)
-
-
-def _setup_logging() -> None:
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-
-
-def cmd_sitl(args: argparse.Namespace) -> int:
-    _setup_logging()
-    try:
-        mission = load_mission(args.mission)
-        overrides = {"sim.seed": args.seed} if getattr(args, "seed", None) is not None else None
-        mission = apply_overrides(mission, overrides)
-    except ConfigError as exc:
-        print(str(exc), file=sys.stderr)
-        return 2
-    ui = not getattr(args, "headless", False) and sys.stdout.isatty()
-    ports = SitlPorts(getattr(args, "mavlink_port", DEFAULT_MAVLINK_PORT) or _free_udp_port(),
-                      getattr(args, "radio_port", DEFAULT_RADIO_PORT) or _free_udp_port())
-    try:
-        result = run_sitl(mission, seed=args.seed if args.seed is not None else 1, ports=ports,
-                          speedup=float(getattr(args, "speedup", 1.0) or 1.0),
-                          method=getattr(args, "method", None),
-                          log_dir=getattr(args, "log_dir", None) or "flights", ui=ui,
-                          time_scale=getattr(args, "time_scale", None))
-    except ConfigError as exc:
-        print(str(exc), file=sys.stderr)
-        return 2
-    except MexgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    print_summary(result)
-    return result.exit_code
-
-
-def print_summary(result: MissionResult) -> None:
-    """The summary on stdout; a dead terminal (SSH gone) loses it, nothing else (the log has
-    it all), and stdout is pointed at /dev/null so the interpreter's last flush cannot fail."""
-    try:
-        print(summary_text(result), flush=True)
-    except (OSError, ValueError):
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
-            os.close(devnull)
-        except (OSError, ValueError):
-            pass
-
-
-def cmd_fly(args: argparse.Namespace) -> int:
-    _setup_logging()
-    try:
-        mission = load_mission(args.mission)
-        if getattr(args, "method", None):
-            mission = apply_overrides(mission, {"planner.method": args.method})
-    except ConfigError as exc:
-        print(str(exc), file=sys.stderr)
-        return 2
-    seed = args.seed if getattr(args, "seed", None) is not None else int(time.time())
-    out = _make_log_dir(getattr(args, "log_dir", None) or "flights", mission,
-                        mission.planner.method, seed)
-    ui = not getattr(args, "headless", False) and sys.stdout.isatty()
-    radio = getattr(args, "radio", None) or mission.receiver.listen
-    clock = VehicleClock(fixed_rate=getattr(args, "time_scale", None))
-    try:
-        result = asyncio.run(fly_mission(
-            mission, connect_url=args.connect, radio_url=radio, clock=clock, log_dir=out,
-            method=mission.planner.method, seed=seed, ui=ui))
-    except MexgenError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    print_summary(result)
-    return result.exit_code

@@ -24,6 +24,7 @@ from textual.events import Key
 from textual.widgets import Footer
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.confirm_screen import ConfirmScreen
 from mexgen_gcs.ui.event_log import EventLog
 from mexgen_gcs.ui.map_view import MapView, scene_from_snapshot
@@ -292,9 +293,10 @@ class MexgenApp(App[None]):
             self.notify("already returning home; the UI closes once landed", timeout=4)
             return
         snap = self.snapshot
-        state = snap.state if snap is not None else "connecting"
+        state = snap.state if snap is not None else MissionState.CONNECTING
         flying = snap is not None and (snap.telemetry.armed or snap.telemetry.in_air)
-        if state == "returning" or (state in ("landed", "done") and not flying):
+        if state == MissionState.RETURNING or (
+                state in (MissionState.LANDED, MissionState.DONE) and not flying):
             question, cmd = "Close the UI once the vehicle has landed?", None
         elif state in PRE_FLIGHT and not flying:
             question, cmd = "Abort the mission (not yet armed) and quit?", "abort"

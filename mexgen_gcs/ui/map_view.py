@@ -17,6 +17,7 @@ from textual.strip import Strip
 from textual.widget import Widget
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.map_canvas import MapScene, MapTag, Viewport, draw_canvas, fit_viewport
 
 ZOOM_STEP = 1.5
@@ -133,4 +134,4 @@ def scene_from_snapshot(snap: MissionSnapshot) -> MapScene:
         area_en_m=snap.area_en_m, home_en_m=(0.0, 0.0), vehicle_en_m=snap.vehicle_en_m,
         vehicle_yaw_deg=snap.telemetry.yaw_deg, track_en_m=snap.track_en_m, tags=tags,
         heading_deg=snap.plan.chosen_heading_deg if (
-            snap.plan is not None and snap.state == "searching") else None)
+            snap.plan is not None and snap.state == MissionState.SEARCHING) else None)

@@ -16,11 +16,11 @@ from collections.abc import AsyncIterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
+from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.mission.snapshot import MissionSnapshot
 
 #: operator commands a live mission accepts (controller.request)
 MISSION_COMMANDS = ("pause", "resume", "rtl", "land", "abort")
-METHODS = ("mexgen", "pim", "mc")
 #: commands a replay accepts
 REPLAY_COMMANDS = ("replay:toggle", "replay:pause", "replay:play", "replay:step",
                    "replay:faster", "replay:slower")

@@ -11,6 +11,7 @@ from rich.text import Text
 from textual.widget import Widget
 
 from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.format import age_text, clock_text, finite, num
 
 OK = "bold black on green"
@@ -39,7 +40,8 @@ def status_text(snap: MissionSnapshot | None, width: int = 1000) -> Text:
     parts.append((f" bat {bat} ", BAD if battery_low else PLAIN))
     silent = "RADIO SILENT" in warn
     parts.append((f" radio {age_text(snap.radio_heartbeat_age_s)} ", BAD if silent else PLAIN))
-    state_style = WARN if snap.state in ("holding", "returning") else "bold reverse"
+    waiting = snap.state in (MissionState.HOLDING, MissionState.RETURNING)
+    state_style = WARN if waiting else "bold reverse"
     parts.append((f" {snap.state.upper()} ", state_style))
     parts.append((f" T+{clock_text(snap.elapsed_s)} ", PLAIN))
     parts.append((f" {snap.method} ", "bold cyan"))

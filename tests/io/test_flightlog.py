@@ -22,11 +22,10 @@ from mexgen_gcs.io.flightlog import (
     FORMAT_VERSION,
     LOG_FILE,
     FlightLogWriter,
-    JsonlWriter,
     new_log_dir,
     read_flight_log,
-    to_jsonable,
 )
+from mexgen_gcs.io.jsonl import JsonlWriter, to_jsonable
 
 REPO = Path(__file__).resolve().parents[2]
 DEMO = REPO / "missions" / "demo.yaml"

@@ -30,7 +30,7 @@ HOME = (-34.9212, 138.6011, 0.0)  # the demo mission's home
 TIMEOUT_S = 900.0
 
 
-def _free_udp_port() -> int:
+def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return int(s.getsockname()[1])
@@ -38,7 +38,7 @@ def _free_udp_port() -> int:
 
 async def test_demo_mission_against_px4(px4_factory: Px4Factory, tmp_path: Path) -> None:
     px4 = await asyncio.to_thread(px4_factory, speed_factor=K, home=HOME)
-    radio_port = _free_udp_port()
+    radio_port = free_udp_port()
     with radios_on(px4, DEMO_MISSION, radio_port=radio_port, truth_dir=tmp_path / "radios"):
         proc = await asyncio.to_thread(
             subprocess.run,

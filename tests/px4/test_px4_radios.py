@@ -28,7 +28,6 @@ from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync
 from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, decode
-from sim.truth import read_truth
 from sim.vehicle_link import fit_boot_unix
 from tests.px4.conftest import Px4Factory
 from tests.px4.px4_sitl import radios_on
@@ -104,7 +103,7 @@ async def test_radios_ride_on_px4(px4_factory: Px4Factory, tmp_path: Path) -> No
 
     truth_path = rider.truth_dir / "truth.jsonl"
     assert not read_truth_file(truth_path).damage  # every record as documented
-    header, *_, end = read_truth(truth_path)
+    header, *_, end = read_truth_file(truth_path).records
     assert header["mode"] == "radios-only" and header["vehicle_sysid"] == px4.sysid
     assert end["reason"] == "landed"
     clock = header["clock"]

@@ -18,7 +18,7 @@ from sim.fence import (
     build_fence,
 )
 from sim.params import ParamTable, decode_param_id
-from sim.truth import TruthWriter, read_truth
+from sim.truth import TruthWriter
 
 
 def test_fault_flags_parse_and_validate() -> None:
@@ -80,16 +80,15 @@ def test_param_table() -> None:
     assert decode_param_id("ABCDEFGHIJKLMNOPQRS") == "ABCDEFGHIJKLMNOP"
 
 
-def test_truth_writer_is_line_json_and_survives_a_torn_line(tmp_path: Path) -> None:
+def test_truth_writer_is_line_json_and_refuses_an_existing_file(tmp_path: Path) -> None:
     w = TruthWriter(tmp_path)
     w.write(1.5, "pulse", power_db=-50.0, rssi_db=math.nan, where=(1.0, math.inf))
     w.close()
-    with (tmp_path / "truth.jsonl").open("a") as f:
-        f.write('{"t": 2, "type": "tag", "x')  # a crash mid-line
-    records = read_truth(tmp_path / "truth.jsonl")
-    assert records == [{"t": 1.5, "type": "pulse", "power_db": -50.0, "rssi_db": None,
-                        "where": [1.0, None]}]
-    json.loads((tmp_path / "truth.jsonl").read_text().splitlines()[0])
+    lines = (tmp_path / "truth.jsonl").read_text().splitlines()
+    assert [json.loads(line) for line in lines] == [
+        {"t": 1.5, "type": "pulse", "power_db": -50.0, "rssi_db": None, "where": [1.0, None]}]
+    with pytest.raises(FileExistsError):
+        TruthWriter(tmp_path)  # a second world never lands in the same file
     TruthWriter(None).write(0.0, "x")  # no directory: writes nothing, no error
 
 

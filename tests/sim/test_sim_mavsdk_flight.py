@@ -19,7 +19,7 @@ from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.offboard import OffboardAsync, VelocityNedYaw
 from mavsdk.asyncio.plugins.telemetry import FlightMode, TelemetryAsync
 
-from sim.truth import read_truth
+from mexgen_gcs.io.truthfile import read_truth_file
 from tests.sim.sim_helpers import SimFactory, free_udp_port
 
 pytestmark = pytest.mark.e2e
@@ -105,7 +105,7 @@ async def test_fly_with_plain_mavsdk(sim_factory: SimFactory) -> None:
         FlightMode.TAKEOFF, FlightMode.OFFBOARD, FlightMode.RETURN_TO_LAUNCH]
     # Landed and disarmed after flying: the simulator ends by itself, cleanly.
     assert await asyncio.to_thread(sim.wait_exit, 15.0) == 0
-    records = read_truth(sim.truth_path)
+    records = read_truth_file(sim.truth_path).records
     assert records[-1]["type"] == "end" and records[-1]["reason"] == "landed"
     top = max(r["up_m"] for r in records if r["type"] == "vehicle")
     assert 49.0 < top < 51.0  # RTL from 50 m stays at 50 m (RTL_RETURN_ALT is 30 m)

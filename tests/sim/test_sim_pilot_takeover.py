@@ -25,7 +25,6 @@ from mexgen_gcs.io.truthfile import read_truth_file
 from sim import px4_modes as modes
 from sim.faults import Fault, FaultSchedule, parse_fault_flag
 from sim.takeover import command_name
-from sim.truth import read_truth
 from tests.sim.mav_helpers import command, start, wait_for
 from tests.sim.sim_helpers import DEMO_MISSION, SimFactory, free_udp_port
 from tests.sim.test_sim_mavsdk_flight import first
@@ -143,7 +142,7 @@ def test_takeover_counts_what_the_gcs_sent_after_it(sim_factory: SimFactory,
     assert sim.wait_exit(30.0) == 0  # landed and disarmed: the simulator ends by itself
 
     assert not read_truth_file(sim.truth_path).damage  # every record as documented
-    records = read_truth(sim.truth_path)
+    records = read_truth_file(sim.truth_path).records
     faults = [r for r in records if r["type"] == "fault"]
     assert [(f["phase"], f["mode_before"], f["mode_after"]) for f in faults] == [
         ("start", "OFFBOARD", "POSCTL"), ("end", "HOLD", "LAND")]
@@ -191,6 +190,6 @@ async def test_mavsdk_sees_the_takeover_and_the_pilot_lands(sim_factory: SimFact
         await first(telemetry.subscribe_flight_mode(), lambda m: m == FlightMode.LAND, 10.0)
         await first(telemetry.subscribe_armed(), lambda armed: not armed, 30.0)
     assert await asyncio.to_thread(sim.wait_exit, 15.0) == 0
-    end = read_truth(sim.truth_path)[-1]
+    end = read_truth_file(sim.truth_path).records[-1]
     assert end["reason"] == "landed" and end["commands_after_takeover"] == 0
     assert end["setpoints_after_takeover"] <= 3  # at most those in flight at the switch

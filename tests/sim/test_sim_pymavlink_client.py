@@ -17,7 +17,7 @@ import pytest
 from pymavlink import mavutil
 
 from mexgen_gcs.core.geo import LocalFrame
-from sim.truth import read_truth
+from mexgen_gcs.io.truthfile import read_truth_file
 from tests.sim.mav_helpers import command, start, wait_for
 from tests.sim.sim_helpers import SimFactory, udp_socket
 
@@ -128,7 +128,7 @@ def test_geofence_upload_and_download(sim_factory: SimFactory, client: Any) -> N
 
     deadline = time.monotonic() + 5.0
     while time.monotonic() < deadline:
-        fences = [r for r in read_truth(sim.truth_path) if r["type"] == "fence"]
+        fences = [r for r in read_truth_file(sim.truth_path).records if r["type"] == "fence"]
         if fences:
             break
         time.sleep(0.1)
@@ -178,5 +178,5 @@ def test_sigint_stops_cleanly(sim_factory: SimFactory, client: Any) -> None:
     sim = start(sim_factory, client)
     sim.proc.send_signal(signal.SIGINT)
     assert sim.wait_exit(10.0) == 0
-    end = read_truth(sim.truth_path)[-1]
+    end = read_truth_file(sim.truth_path).records[-1]
     assert end["type"] == "end" and end["reason"] == "signal"

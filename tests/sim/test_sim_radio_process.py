@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, Heartbeat, decode
-from sim.truth import read_truth
 from tests.sim.sim_helpers import SimFactory, udp_socket, write_mission
 
 SPEEDUP = 20.0
@@ -55,7 +55,7 @@ def test_datagrams_follow_wire_v1_the_model_and_the_truth(sim_factory: SimFactor
     assert (d0.lat, d0.lon, d0.alt_m, d0.yaw_deg) == pytest.approx((-34.9212, 138.6011, 20.0,
                                                                     0.0), abs=1e-6)
 
-    records = read_truth(sim.truth_path)
+    records = read_truth_file(sim.truth_path).records
     pulses = [r for r in records if r["type"] == "pulse"]
     sent = {(r["t_sent"], r["tag"], r["rssi_db"]) for r in records
             if r["type"] in ("pulse", "clutter") and r["sent"]}

@@ -6,8 +6,10 @@ the truth log behave as documented.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,7 +19,7 @@ from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.io.wire import Detection, Heartbeat, decode
 from sim.faults import Fault, FaultSchedule
 from sim.radios import RadioSim, ReceiverPose, TagTruth
-from sim.truth import TruthWriter, read_truth
+from sim.truth import TruthWriter
 
 T0_UNIX = 1.7e9
 GROUND = ReceiverPose(0.0, 0.0, 0.0, 0.0, -34.9, 138.6, 20.0)
@@ -39,6 +41,11 @@ def run(radio: RadioSim, duration_s: float, pose: ReceiverPose = GROUND, step_s:
         out.extend((t, decode(d)) for d in radio.advance(t, t, pose))
         t += step_s
     return out
+
+
+def written(directory: Path) -> list[dict[str, Any]]:
+    """The records a bare TruthWriter wrote (no 'sim' header, so not a truth file to read)."""
+    return [json.loads(line) for line in (directory / "truth.jsonl").read_text().splitlines()]
 
 
 def make_radio(tags: list[TagTruth], model: RadioModel, tmp_path: Path | None = None,
@@ -96,7 +103,7 @@ def test_truth_log_matches_what_was_sent(tmp_path: Path) -> None:
     radio, faults = make_radio(tags, model, tmp_path)
     got = run(radio, 300, faults=faults)
     sent = [e for _, e in got if isinstance(e, Detection)]
-    records = read_truth(tmp_path / "truth.jsonl")
+    records = written(tmp_path)
     pulses = [r for r in records if r["type"] == "pulse"]
     clutter = [r for r in records if r["type"] == "clutter"]
     assert 600 <= len(pulses) <= 602  # each tag pulses once a second, at its own phase
@@ -149,10 +156,10 @@ def test_moving_tag_truth_follows_its_model(tmp_path: Path) -> None:
                    np.array([[0.0, 0.0, 3.0, 4.0]]), np.zeros(1, np.int8), "cv")
     radio, _ = make_radio([tag], RadioModel(), tmp_path)
     run(radio, 100)
-    tracks = [r for r in read_truth(tmp_path / "truth.jsonl") if r["type"] == "tag"]
+    tracks = [r for r in written(tmp_path) if r["type"] == "tag"]
     last = tracks[-1]
     elapsed = last["t"] - T0_UNIX
     assert (last["x_m"], last["y_m"]) == pytest.approx((3.0 * elapsed, 4.0 * elapsed))
-    pulse = [r for r in read_truth(tmp_path / "truth.jsonl") if r["type"] == "pulse"][-1]
+    pulse = [r for r in written(tmp_path) if r["type"] == "pulse"][-1]
     assert (pulse["x_m"], pulse["y_m"]) == pytest.approx(
         (3.0 * (pulse["t"] - T0_UNIX), 4.0 * (pulse["t"] - T0_UNIX)), abs=1e-3)

@@ -22,7 +22,6 @@ from mexgen_gcs.config import load_mission
 from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, decode
 from sim.__main__ import main as sim_main
-from sim.truth import read_truth
 from sim.vehicle_link import PoseHistory, PoseSample, VehicleTrack, parse_vehicle_url
 from tests.sim.mav_helpers import command, drain, start, wait_for
 from tests.sim.sim_helpers import (
@@ -180,8 +179,8 @@ def test_radios_ride_on_the_simulators_vehicle(sim_factory: SimFactory, client: 
     assert len(detections) > 20
     for path in (sim.truth_path, rider.truth_dir / "truth.jsonl"):  # records as documented
         assert not read_truth_file(path).damage, read_truth_file(path).damage.describe()
-    sim_truth = read_truth(sim.truth_path)
-    rider_truth = read_truth(rider.truth_dir / "truth.jsonl")
+    sim_truth = read_truth_file(sim.truth_path).records
+    rider_truth = read_truth_file(rider.truth_dir / "truth.jsonl").records
     header = rider_truth[0]
     assert header["type"] == "sim" and header["mode"] == "radios-only"
     assert header["clock"]["source"] == "SYSTEM_TIME" and header["vehicle_sysid"] == 1

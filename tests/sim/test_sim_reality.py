@@ -12,9 +12,9 @@ import pytest
 
 from mexgen_gcs.config import load_mission
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.io.truthfile import read_truth_file
 from mexgen_gcs.io.wire import Detection, decode
 from sim.radios import reality_world
-from sim.truth import read_truth
 from tests.sim.sim_helpers import SimFactory, udp_socket, write_mission
 
 TAGS = [{"id": "A", "freq_hz": 150_100_000}, {"id": "B", "freq_hz": 150_200_000}]
@@ -43,7 +43,7 @@ def test_tx_power_world_shifts_each_tags_power_by_its_drawn_offset(
             detections.append(msg)
     assert sim.stop() == 0
     sock.close()
-    records = read_truth(sim.truth_path)
+    records = read_truth_file(sim.truth_path).records
     header = records[0]
     assert header["reality"]["profile"] == "tx-power"
     assert header["reality"]["tx_offset_db"] == pytest.approx(world.tx_offset_db.tolist())

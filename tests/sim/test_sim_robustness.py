@@ -20,7 +20,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v10 import common as mavlink1
 from pymavlink.dialects.v20 import ardupilotmega
 
-from sim.truth import read_truth
+from mexgen_gcs.io.truthfile import read_truth_file
 from tests.sim.mav_helpers import command, start, wait_for
 from tests.sim.sim_helpers import SimFactory
 
@@ -146,7 +146,7 @@ def test_garbage_and_hostile_messages(sim_factory: SimFactory, client: Any) -> N
         M.MAV_RESULT_ACCEPTED
     assert sim.alive()
     assert sim.stop() == 0
-    end = read_truth(sim.truth_path)[-1]
+    end = read_truth_file(sim.truth_path).records[-1]
     assert end["type"] == "end"
     stats = end["mavlink"]
     assert stats["errors"] == 0, sim.stderr_lines

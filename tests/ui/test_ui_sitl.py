@@ -33,7 +33,7 @@ def _sim_children() -> list[psutil.Process]:
     return out
 
 
-def test_ui_on_a_real_flight_quits_with_the_vehicle_home(tmp_path, monkeypatch):
+def test_ui_on_a_real_flight_quits_with_the_vehicle_home(tmp_path):
     seen: dict[str, object] = {}
 
     async def operator(pilot) -> None:
@@ -56,9 +56,8 @@ def test_ui_on_a_real_flight_quits_with_the_vehicle_home(tmp_path, monkeypatch):
 
     attached = functools.partial(ui_app.run_with_ui, headless=True, size=(120, 40),
                                  auto_pilot=operator)
-    monkeypatch.setattr(ui_app, "run_with_ui", attached)
     result = run_sitl(MISSIONS / "demo.yaml", seed=3, speedup=SPEEDUP, ports=SitlPorts.free(),
-                      log_dir=tmp_path, ui=True)
+                      log_dir=tmp_path, runner=attached)
 
     assert seen.get("quit_requested"), seen
     screen = str(seen["screen"])
