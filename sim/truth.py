@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from mexgen_gcs.io.jsonl import JsonlWriter
+from mexgen_gcs.io.records import TRUTH_ADAPTER
 from mexgen_gcs.io.truthfile import TRUTH_FILE
 
 FILENAME = TRUTH_FILE
@@ -31,7 +32,12 @@ class TruthWriter:
         self._writer: JsonlWriter | None = None
         if directory is not None:
             self.path = directory / FILENAME
-            self._writer = JsonlWriter(self.path)
+            self._writer = JsonlWriter(self.path, records=TRUTH_ADAPTER)
+
+    @property
+    def invalid(self) -> dict[str, int]:
+        """Records written that the truth file's documented types do not allow, by reason."""
+        return dict(self._writer.invalid) if self._writer is not None else {}
 
     @property
     def records(self) -> int:

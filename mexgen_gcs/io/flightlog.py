@@ -71,7 +71,8 @@ class FlightLogWriter(JsonlWriter):
         extra: Mapping[str, Any] | None = None,
     ) -> None:
         self.log_dir = Path(log_dir)
-        super().__init__(self.log_dir / LOG_FILE, fsync=fsync, clock=clock)
+        super().__init__(self.log_dir / LOG_FILE, fsync=fsync, clock=clock,
+                         records=FLIGHT_ADAPTER)
         from mexgen_gcs.config.describe import dump_resolved
 
         self.write(

@@ -5,6 +5,7 @@ JSON-safe on the way (numpy to Python, NaN and infinities to null). No frames he
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import dataclasses
 import enum
@@ -17,6 +18,9 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+from pydantic import TypeAdapter
+
+from mexgen_gcs.io.logread import parse_record
 
 
 def to_jsonable(value: Any) -> Any:
@@ -55,10 +59,16 @@ class JsonlWriter:
     A write that fails with OSError (disk full, I/O error) is undone: the file is cut back to
     its last complete record, `lost_records` counts it and the OSError is raised, so the file
     never holds a torn line in its middle and the caller decides whether to go on.
+
+    With `records` (an `io.records` adapter: the flight log's or the truth file's) every line
+    is checked as its reader will check it, before it is written: a record its documented type
+    does not allow is still written (nothing is lost), and counted in `invalid` by the reason
+    a reader will give (``invalid plan record``), for the caller to report.
     """
 
     def __init__(self, path: str | os.PathLike[str], *, fsync: bool = False,
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time,
+                 records: TypeAdapter[Any] | None = None) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: IO[bytes] | None = open(self.path, "xb", buffering=0)  # noqa: SIM115
@@ -67,6 +77,8 @@ class JsonlWriter:
         self._size = 0
         self.records = 0
         self.lost_records = 0
+        self._check = records
+        self.invalid: collections.Counter[str] = collections.Counter()
 
     def write(self, type: str, **fields: Any) -> dict[str, Any]:
         """Append one record; `t` defaults to the clock. Returns the record as written."""
@@ -75,7 +87,12 @@ class JsonlWriter:
         t = fields.pop("t", None)
         record = {"t": self._clock() if t is None else t, "type": type, **fields}
         safe = to_jsonable(record)
-        data = (json.dumps(safe, separators=(",", ":"), allow_nan=False) + "\n").encode("utf-8")
+        line = json.dumps(safe, separators=(",", ":"), allow_nan=False).encode("utf-8")
+        if self._check is not None:
+            checked = parse_record(line, self._check)
+            if isinstance(checked, str):
+                self.invalid[checked] += 1
+        data = line + b"\n"
         try:
             view = memoryview(data)
             while view:

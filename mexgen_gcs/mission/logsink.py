@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from mexgen_gcs.io.records import Record
@@ -21,6 +21,12 @@ log = logging.getLogger(__name__)
 
 class RecordWriter(Protocol):
     def write(self, type: str, **fields: Any) -> Any: ...
+
+
+def invalid_counts(writer: RecordWriter) -> Mapping[str, int]:
+    """What the writer found not matching the documented record types (io.jsonl), by reason."""
+    found = getattr(writer, "invalid", None)
+    return found if isinstance(found, Mapping) else {}
 
 
 class MissionLog:
@@ -35,6 +41,7 @@ class MissionLog:
         self._monotonic = monotonic
         self.on_loss = on_loss
         """Called with a warning text when records start being lost (e.g. an in-memory event)."""
+        self._invalid_said: set[str] = set()
 
     def write_record(self, record: Record) -> bool:
         """Write a typed record (see `write`)."""
@@ -48,7 +55,10 @@ class MissionLog:
                 self.writer.write("log_loss", t=fields.get("t"), lost=self._unreported,
                                   lost_total=self.lost)
                 self._unreported = 0
+            before = sum(invalid_counts(self.writer).values())
             self.writer.write(type, **fields)
+            if sum(invalid_counts(self.writer).values()) > before:
+                self._report_invalid(type)
         except OSError as exc:
             self.lost += 1
             self._unreported += 1
@@ -62,3 +72,15 @@ class MissionLog:
                     self.on_loss(text)
             return False
         return True
+
+    def _report_invalid(self, type: str) -> None:
+        """A record that does not match its documented type was written anyway (a bug: the
+        analysis will skip it); said once per record type, never stopping the flight."""
+        if type in self._invalid_said:
+            return
+        self._invalid_said.add(type)
+        text = (f"flight log: a {type!r} record does not match its documented type "
+                "(docs/flight-log.md); written anyway, readers will skip it")
+        log.warning("%s", text)
+        if self.on_loss is not None:
+            self.on_loss(text)

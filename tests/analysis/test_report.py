@@ -13,6 +13,7 @@ import pytest
 from mexgen_gcs.analysis import load_flight, load_truth, summarise
 from mexgen_gcs.analysis.report import PLOTS, write_report
 from mexgen_gcs.cli import main
+from mexgen_gcs.io.truthfile import read_truth_file
 
 pytestmark = pytest.mark.e2e
 
@@ -24,8 +25,7 @@ def _records(log_dir: Path) -> list[dict]:
 
 
 def _truth_track(log_dir: Path, tag: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    rows = [json.loads(line) for line in (log_dir / "truth.jsonl").read_text().splitlines()]
-    tr = [(r["t"], r["x_m"], r["y_m"]) for r in rows if r["type"] == "tag" and r["tag"] == tag]
+    tr = [(r.t, r.x_m, r.y_m) for r in read_truth_file(log_dir).tags() if r.tag == tag]
     a = np.array(tr)
     return a[:, 0], a[:, 1], a[:, 2]
 
@@ -109,7 +109,7 @@ def test_mission_totals_and_failsafes(demo_log: Path) -> None:
     assert s.totals.duration_s == pytest.approx(result["duration_s"])
     assert s.totals.plans == sum(1 for r in _records(demo_log) if r["type"] == "plan")
     # the distance flown agrees with the simulator's own 1 Hz vehicle track
-    rows = [json.loads(x) for x in (demo_log / "truth.jsonl").read_text().splitlines()]
+    rows = read_truth_file(demo_log).records
     veh = np.array([(r["east_m"], r["north_m"]) for r in rows if r["type"] == "vehicle"])
     sim_m = float(np.hypot(*np.diff(veh, axis=0).T).sum())
     assert s.totals.distance_flown_m == pytest.approx(sim_m, rel=0.05)

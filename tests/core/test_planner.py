@@ -246,7 +246,7 @@ def test_bench_planner_smoke(capsys):
     setting = bench_planner.Setting("tiny", 2, 64, "rw")
     out = bench_planner.run(iterations=2, warmup=0, settings=(setting,))
     assert {"what", "machine", "results", "ratios"} <= set(out)
-    assert [r["method"] for r in out["results"]] == ["mexgen", "pim", "mc"]  # core.generators.METHODS
+    assert [r["method"] for r in out["results"]] == ["mexgen", "pim", "mc"]
     for r in out["results"]:
         assert {"median_ms", "min_ms", "max_ms", "stages_median_ms"} <= set(r)
         assert set(r["stages_median_ms"]) == set(STAGES)

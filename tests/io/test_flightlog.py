@@ -239,6 +239,24 @@ def test_jsonl_writer_for_other_files(tmp_path: Path) -> None:
                                     "tags": [{"id": "T1", "east_m": 1.5}]}
 
 
+def test_writer_checks_each_record_against_its_documented_type(tmp_path: Path) -> None:
+    """A record its type does not allow is counted (by the reason a reader gives) and still
+    written; the mission's log sink says so once per record type; valid records pass."""
+    from mexgen_gcs.mission.logsink import MissionLog
+
+    with JsonlWriter(tmp_path / "f.jsonl", clock=lambda: 1.0,
+                     records=records.FLIGHT_ADAPTER) as w:
+        said: list[str] = []
+        sink = MissionLog(w, on_loss=said.append)
+        assert sink.write("event", kind="armed")
+        assert sink.write("plan", method="pim")  # no headings, rewards, ...
+        assert sink.write("plan", method="pim")
+        assert sink.write("future_type", anything=1)  # unknown types are kept, not invalid
+    assert dict(w.invalid) == {"invalid plan record": 2} and w.records == 4
+    assert len(said) == 1 and "'plan' record does not match" in said[0]
+    assert len((tmp_path / "f.jsonl").read_text().splitlines()) == 4
+
+
 def test_new_log_dir_is_unique(tmp_path: Path) -> None:
     a = new_log_dir(tmp_path, "demo mission", clock=lambda: 0.0)
     b = new_log_dir(tmp_path, "demo mission", clock=lambda: 0.0)

@@ -7,7 +7,6 @@ every 5 s of PX4's (simulated) time. PX4's home is put at the mission's home.
 from __future__ import annotations
 
 import asyncio
-import json
 import math
 import socket
 import subprocess
@@ -19,6 +18,7 @@ import pytest
 
 from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.io.flightlog import read_flight_log
+from mexgen_gcs.io.truthfile import read_truth_file
 from tests.px4.conftest import Px4Factory
 from tests.px4.px4_sitl import radios_on
 from tests.sim.sim_helpers import DEMO_MISSION
@@ -55,11 +55,7 @@ async def test_demo_mission_against_px4(px4_factory: Px4Factory, tmp_path: Path)
     (result,) = log.of_type("result")
     assert result["end_reason"] == "all_localised", result
     # every localised tag inside the radius it claimed (truth: the radios' truth file)
-    truth: dict[str, tuple[float, float]] = {}
-    for line in (tmp_path / "radios" / "truth.jsonl").read_text().splitlines():
-        rec = json.loads(line)
-        if rec.get("type") == "tag":
-            truth[rec["tag"]] = (rec["x_m"], rec["y_m"])
+    truth = {r.tag: (r.x_m, r.y_m) for r in read_truth_file(tmp_path / "radios").tags()}
     frame = LocalFrame(*HOME)
     localised = [r for r in log.of_type("event") if r.get("kind") == "tag_localised"]
     assert {r["tag"] for r in localised} == {"T1", "T2", "T3", "T4"}
