@@ -134,10 +134,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")
 
-    p = sub.add_parser("bench", help="benchmarks: filter or planner (median/min/max)")
-    p.add_argument("what", choices=("filter", "planner"))
+    p = sub.add_parser("bench", help="benchmarks: filter or planner (median/min/max), or "
+                                     "experiment (runs per hour, the full Table II projected)")
+    p.add_argument("what", choices=("filter", "planner", "experiment"))
     p.add_argument("--json", action="store_true", help="print JSON")
-    p.add_argument("--iterations", type=_positive_int, default=None, metavar="N")
+    p.add_argument("--iterations", type=_positive_int, default=None, metavar="N",
+                   help="filter, planner: timed calls")
+    p.add_argument("--starts", type=_positive_int, default=None, metavar="N",
+                   help="experiment: runs per model and method (default 2)")
     return parser
 
 

@@ -145,7 +145,7 @@ LAYERS: dict[str, set[str]] = {
     "ui": {"mission", "io", "config", "core", "errors", "package"},
     "analysis": {"mission", "io", "config", "core", "errors", "package"},
     "experiments": {"mission", "config", "core", "errors", "package"},
-    "bench": {"core", "config", "errors", "package"},
+    "bench": {"experiments", "core", "config", "errors", "package"},
     "cli": {"config", "core", "errors", "package"},  # the other handlers: looked up by name
     "__main__": {"cli"},
 }

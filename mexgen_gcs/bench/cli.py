@@ -1,4 +1,4 @@
-"""`mexgen-gcs bench filter|planner`: dispatch to the named benchmark."""
+"""`mexgen-gcs bench filter|planner|experiment`: dispatch to the named benchmark."""
 
 from __future__ import annotations
 
@@ -12,6 +12,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
     pin_single_thread()
     what = getattr(args, "what", None) or getattr(args, "target", None) or "planner"
     argv = ["--json"] if getattr(args, "json", False) else []
+    if what == "experiment":
+        from mexgen_gcs.bench import experiment as bench_experiment
+
+        starts = getattr(args, "starts", None)
+        return bench_experiment.main(argv + (["--starts", str(starts)] if starts else []))
     iterations = getattr(args, "iterations", None)
     if iterations:
         argv += ["--iterations", str(iterations)]
@@ -23,5 +28,5 @@ def cmd_bench(args: argparse.Namespace) -> int:
         from mexgen_gcs.bench import planner as bench_planner
 
         return int(bench_planner.main(argv) or 0)
-    print(f"unknown benchmark {what!r}; expected filter or planner")
+    print(f"unknown benchmark {what!r}; expected filter, planner or experiment")
     return 2

@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import statistics
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -88,6 +88,9 @@ class RunResult:
     row: dict[str, str]
     series: dict[str, NDArray[np.float32]]
     """t_s (T,), vehicle_en_m (T, 2), error_m (T, n_tags), trace_m2 (T, n_tags)."""
+    stages_s: dict[str, float] = field(default_factory=dict)
+    """Process CPU seconds by stage: filter (detections and pulses), planner, world (the
+    rest: truth, radio, vehicle, bookkeeping); for `bench experiment`, not in runs.csv."""
 
 
 def run_one(spec: RunSpec) -> RunResult:
@@ -121,14 +124,19 @@ def run_one(spec: RunSpec) -> RunResult:
 
     heading_deg: float | None = None
     plan_s: list[float] = []
+    cpu = time.process_time
+    stage = {"filter": 0.0, "planner": 0.0}
 
     def replan(t: float) -> float | None:
+        c0 = cpu()
         vs = VehicleState(vehicle.xyz_m, vehicle.v_xy_m_s, vehicle.yaw_rad)
         request = core.plan_request(t, vs)
         if request is None:
+            stage["planner"] += cpu() - c0
             return heading_deg
         result = planner.plan(request.beliefs, request.vehicle, plan_rng.spawn(1)[0])
         plan_s.append(result.total_s)
+        stage["planner"] += cpu() - c0
         return result.heading_deg
 
     heading_deg = replan(0.0)
@@ -160,11 +168,14 @@ def run_one(spec: RunSpec) -> RunResult:
             vehicle.step(sp.v_east_m_s, sp.v_north_m_s, sp.yaw_deg, dt_sub)
         tag_xy = truth.states[k, :, :2]
         rx_xyz, yaw_rad = vehicle.xyz_m, vehicle.yaw_rad
-        for tid, zs in zip(tag_ids, radio.pulse(tag_xy, rx_xyz, yaw_rad), strict=True):
+        heard = radio.pulse(tag_xy, rx_xyz, yaw_rad)
+        c0 = cpu()
+        for tid, zs in zip(tag_ids, heard, strict=True):
             for z in zs:
                 core.add_detection(tid, z, rx_xyz, yaw_rad)
             detections += len(zs)
         report = core.pulse(t, rx_xyz, yaw_rad, listening)
+        stage["filter"] += cpu() - c0
         i = k - 1
         t_s[i] = t
         vehicle_en[i] = rx_xyz[:2]
@@ -188,11 +199,12 @@ def run_one(spec: RunSpec) -> RunResult:
             heading_deg = replan(t)
             next_plan_t += sc.replan_interval_s
     n = k
+    cpu_s = cpu() - cpu0
+    stage["world"] = max(cpu_s - stage["filter"] - stage["planner"], 0.0)
     row = _row(spec, truth.digest(), core, (localised_err, claimed), done_t, error_m[:n],
                trace_m2[:n],
                sim_s=float(t_s[n - 1]), wall_s=time.perf_counter() - wall0,
-               cpu_s=time.process_time() - cpu0, plan_s=plan_s,
-               detections=detections)
+               cpu_s=cpu_s, plan_s=plan_s, detections=detections)
     if sc.kind == "localise":
         row.update(_reading(core.tag_ids, core.tight, (tight_err, tight_claimed), tight_t,
                             "tight_"),
@@ -200,7 +212,8 @@ def run_one(spec: RunSpec) -> RunResult:
                    tight_radius_m=_num(sc.tight_radius_m))
     series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
               "trace_m2": trace_m2[:n]}
-    return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()})
+    return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()},
+                     stages_s=dict(stage))
 
 
 def _num(x: float | None) -> str:

@@ -56,6 +56,7 @@ import yaml
 
 from mexgen_gcs.config import CLASSIC_ESTIMATOR, Mission, parse_mission
 from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.generators import Method
 from mexgen_gcs.core.motion import PAPER_TRANSITION
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.reality import PROFILES
@@ -78,9 +79,9 @@ TIGHT_RADIUS_M = 25.0
 
 #: experiment method name -> (planner.method, label in tables)
 METHODS: dict[str, tuple[str, str]] = {
-    "pim": ("pim", "PIM"),
-    "mc8": ("mc", "MC-8"),
-    "mexgen": ("mexgen", "MexGen"),
+    "pim": (Method.PIM.value, "PIM"),
+    "mc8": (Method.MC.value, "MC-8"),
+    "mexgen": (Method.MEXGEN.value, "MexGen"),
 }
 
 #: model -> (truth motion, the motion model the filter assumes)
