@@ -79,7 +79,7 @@ class MissionLog:
         if type in self._invalid_said:
             return
         self._invalid_said.add(type)
-        text = (f"flight log: a {type!r} record does not match its documented type "
+        text = (f"a {type!r} record does not match its documented type "
                 "(docs/flight-log.md); written anyway, readers will skip it")
         log.warning("%s", text)
         if self.on_loss is not None:
