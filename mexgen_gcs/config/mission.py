@@ -231,12 +231,7 @@ class Mission(Section):
 
     def radio_uncertainty(self) -> RadioUncertainty:
         """What the estimator does not know about the radio (radio section)."""
-        r = self.radio
-        return RadioUncertainty(
-            p0_std_db=r.p0_std_db, path_loss_exponent_std=r.path_loss_exponent_std,
-            shadowing_std_db=tuple(r.shadowing_std_db),
-            shadowing_distance_m=r.shadowing_distance_m,
-            model_error_std_db=tuple(r.model_error_std_db), outlier_prob=r.outlier_prob)
+        return self.radio.uncertainty()
 
     def tag_radio_priors(self) -> dict[str, TagRadioPrior]:
         """Per-tag offsets about radio.p0_db from tags[].p0_db / p0_std_db (calibrations)."""

@@ -21,6 +21,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, field_validator, mode
 
 from mexgen_gcs.config.urls import parse_udp_url
 from mexgen_gcs.core.generators import Method
+from mexgen_gcs.core.radio_belief import RadioUncertainty
 
 KeyPath = tuple[str | int, ...]
 
@@ -224,6 +225,14 @@ class RadioSection(Section):
             raise RuleViolation([(("clutter_max_db",), f"expected clutter_max_db > clutter_min_db "
                                   f"({self.clutter_min_db:g}); found {self.clutter_max_db:g}")])
         return self
+
+    def uncertainty(self) -> RadioUncertainty:
+        """What the estimator does not know about the radio (core RadioUncertainty)."""
+        return RadioUncertainty(
+            p0_std_db=self.p0_std_db, path_loss_exponent_std=self.path_loss_exponent_std,
+            shadowing_std_db=tuple(self.shadowing_std_db),
+            shadowing_distance_m=self.shadowing_distance_m,
+            model_error_std_db=tuple(self.model_error_std_db), outlier_prob=self.outlier_prob)
 
 
 class Receiver(Section):

@@ -43,3 +43,15 @@ def test_bench_experiment_is_a_bench_subcommand(monkeypatch, capsys) -> None:
     assert main(["bench", "experiment", "--starts", "3", "--json"]) == 0
     assert calls == [{"starts": 3}]
     assert json.loads(capsys.readouterr().out)["table"]["runs"] == 1500
+
+
+def test_bench_filter_times_both_estimators_on_a_moving_receiver() -> None:
+    from mexgen_gcs.bench import filter as bench_filter
+
+    out = bench_filter.run(iterations=3, sizes=(200,), models=("cv",))
+    rows = {(r["estimator"], r["model"], r["n_particles"]): r for r in out["results"]}
+    assert set(rows) == {("classic", "cv", 200), ("robust", "cv", 200)}
+    assert all(r["median_ms"] > 0 for r in rows.values())
+    estimators = bench_filter.ESTIMATORS
+    assert estimators["robust"].active and not estimators["classic"].active
+    assert "robust" in bench_filter._table(out)
