@@ -305,6 +305,11 @@ def _predicted(radio: RadioModel, belief: RadioBelief | None, base: FloatArray,
     return Predicted(mean, np.maximum(var, 0.0), log_term, sh)
 
 
+_CERTAIN_X = 12.0
+"""Standard scores above which detection is certain in float64: log Phi(12) = -2e-33 and
+Phi(-12) = 2e-33, negligible beside the miss floor 1 - pd_max >= 1e-12."""
+
+
 def log_detection_probability(radio: RadioModel, pred: Predicted,
                               extra_var: FloatArray | float = 0.0
                               ) -> tuple[FloatArray, FloatArray]:
@@ -313,11 +318,16 @@ def log_detection_probability(radio: RadioModel, pred: Predicted,
     spread = np.sqrt(radio.detection_spread_db**2 + pred.var_db2 + extra_var)
     x = (pred.mean_db - radio.sensitivity_db) / spread
     log_pd_max = math.log(max(radio.pd_max, 1e-300))
+    log_miss_floor = math.log1p(-min(radio.pd_max, 1.0 - 1e-12))
+    if x.size and float(x.min()) >= _CERTAIN_X:
+        # every particle far above the sensitivity (the paper preset's sensor): Phi(x) = 1 and
+        # pd_max Phi(-x) < 1e-32 next to 1 - pd_max >= 1e-12, exactly in float64
+        return (np.full_like(x, max(log_pd_max, -1e4)),
+                np.full_like(x, max(log_miss_floor, -1e4)))
     log_pd = log_pd_max + log_ndtr(x)
     # 1 - pd_max Phi(x) = (1 - pd_max) + pd_max Phi(-x)
     with np.errstate(divide="ignore"):
-        log_miss = np.logaddexp(math.log1p(-min(radio.pd_max, 1.0 - 1e-12)),
-                                log_pd_max + log_ndtr(-x))
+        log_miss = np.logaddexp(log_miss_floor, log_pd_max + log_ndtr(-x))
     return np.maximum(log_pd, -1e4), np.maximum(log_miss, -1e4)
 
 
