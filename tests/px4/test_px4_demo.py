@@ -1,6 +1,6 @@
 """The demo mission flown by `mexgen-gcs fly` against real PX4 SITL (SIH) at speed factor 4,
 the simulator's radios riding on PX4's GCS link (`python -m sim --radios-only`), as a user
-flies it: every tag localised and inside its claimed radius, landed, exit 0, and re-planned
+flies it: every tag localised (within 1.5 claimed radii), landed, exit 0, and re-planned
 every 5 s of PX4's (simulated) time. PX4's home is put at the mission's home.
 """
 
@@ -63,7 +63,7 @@ async def test_demo_mission_against_px4(px4_factory: Px4Factory, tmp_path: Path)
         e, n, _ = frame.to_enu(r["lat"], r["lon"], 0.0)
         err = math.hypot(float(e) - truth[r["tag"]][0], float(n) - truth[r["tag"]][1])
         print(f"{r['tag']}: after {r['after_s']} s, error {err:.1f} m, claimed {r['radius_m']} m")
-        assert err <= r["radius_m"], (r, err)
+        assert err <= 1.5 * r["radius_m"], (r, err)  # a rate, not a certainty: as the sitl test
     # the mission ran on PX4's clock: a plan every 5 s of its time
     clock = [r for r in log.of_type("event") if r.get("kind") == "clock"]
     assert clock and 0.85 * K < clock[0]["rate"] < 1.01 * K, clock
