@@ -32,7 +32,11 @@ class TruthWriter:
         self._writer: JsonlWriter | None = None
         if directory is not None:
             self.path = directory / FILENAME
-            self._writer = JsonlWriter(self.path, records=TRUTH_ADAPTER)
+            try:
+                self._writer = JsonlWriter(self.path, records=TRUTH_ADAPTER)
+            except FileExistsError:
+                raise FileExistsError(f"{self.path} already exists: give each run its own "
+                                      "--truth-dir") from None
 
     @property
     def invalid(self) -> dict[str, int]:

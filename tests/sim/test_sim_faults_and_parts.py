@@ -87,7 +87,7 @@ def test_truth_writer_is_line_json_and_refuses_an_existing_file(tmp_path: Path) 
     lines = (tmp_path / "truth.jsonl").read_text().splitlines()
     assert [json.loads(line) for line in lines] == [
         {"t": 1.5, "type": "pulse", "power_db": -50.0, "rssi_db": None, "where": [1.0, None]}]
-    with pytest.raises(FileExistsError):
+    with pytest.raises(FileExistsError, match="its own --truth-dir"):
         TruthWriter(tmp_path)  # a second world never lands in the same file
     TruthWriter(None).write(0.0, "x")  # no directory: writes nothing, no error
 
