@@ -39,8 +39,11 @@ from typing import ClassVar, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.particle_sampling import iid_indices, stratified_counts
+from mexgen_gcs.core.jit import exp32, kernel
+from mexgen_gcs.core.particle_sampling import iid_indices, row_counts
 from mexgen_gcs.core.workspace import Workspace
+
+_F = np.float32
 
 FloatArray = NDArray[np.floating]
 IntArray = NDArray[np.intp]
@@ -175,28 +178,21 @@ class MexGen:
         """O(B N) plus O(B M) (stratified) or O(B M log N) (independent)."""
         w = np.asarray(view.weights)
         batch, m = w.shape[:-1], self.samples
-        power = np.broadcast_to(view.power_db, w.shape)
         if self.stratified:
-            w_total = w.sum(axis=-1, dtype=np.float32)
-            ws = view.scratch
-            mass = None if ws is None else ws.get("mexgen_mass", w.shape)
-            mass = np.exp(np.broadcast_to(view.log_pd, w.shape), dtype=np.float32, out=mass)
-            mass *= w
-            p_detect = mass.sum(axis=-1, dtype=np.float32) / w_total
-            counts = stratified_counts(mass, m, rng, dtype=np.float32, total=w_total,
-                                       scratch=ws)
-            n_hit = counts.sum(axis=-1)
-            total = np.vecdot(counts, power)
-            fallback = np.vecdot(w, power) / w_total
-        else:
-            idx = iid_indices(w, m, rng)  # (B..., M)
-            sampled, log_pd = take_rows((view.power_db, view.log_pd), idx)
-            pd = np.exp(log_pd)
-            hit = rng.random(idx.shape, dtype=np.float32) < pd
-            n_hit = np.count_nonzero(hit, axis=-1)
-            total = np.where(hit, sampled, 0.0).sum(axis=-1, dtype=np.float64)
-            fallback = sampled.mean(axis=-1, dtype=np.float64)
-            p_detect = n_hit / np.float32(m)
+            z = np.empty(batch, np.float32)
+            p = np.empty(batch, np.float32)
+            _stratified_measure(_rows32(w, w.shape), _rows32(view.power_db, w.shape),
+                                _rows32(view.log_pd, w.shape), m, view.noise_std_db, rng,
+                                z.reshape(-1), p.reshape(-1))
+            return GeneratedMeasurement(z_db=z, p_detect=p)
+        idx = iid_indices(w, m, rng)  # (B..., M)
+        sampled, log_pd = take_rows((view.power_db, view.log_pd), idx)
+        pd = np.exp(log_pd)
+        hit = rng.random(idx.shape, dtype=np.float32) < pd
+        n_hit = np.count_nonzero(hit, axis=-1)
+        total = np.where(hit, sampled, 0.0).sum(axis=-1, dtype=np.float64)
+        fallback = sampled.mean(axis=-1, dtype=np.float64)
+        p_detect = n_hit / np.float32(m)
         # Where no sample is detected (p_detect below ~1/M) z is the mean over every sample:
         # finite, and weighted by that small p_detect in the planner.
         k = np.maximum(n_hit, 1)
@@ -226,6 +222,53 @@ class MonteCarlo:
         noise = rng.standard_normal(power.shape) * view.noise_std_db
         return GeneratedMeasurement(z_db=(power + noise).astype(np.float32),
                                     p_detect=detected.astype(np.float32))
+
+
+def _rows32(a: FloatArray, shape: tuple[int, ...]) -> NDArray[np.float32]:
+    """``a`` broadcast to ``shape`` as contiguous float32 rows (rows, N): a view when it
+    already is one (the planner's grids), else a copy."""
+    b = np.broadcast_to(np.asarray(a), shape)
+    return np.ascontiguousarray(b, dtype=np.float32).reshape(-1, shape[-1])
+
+
+@kernel
+def _stratified_measure(w: NDArray[np.float32], power: NDArray[np.float32],
+                        log_pd: NDArray[np.float32], m: int, noise_std_db: float,
+                        rng: np.random.Generator, z: NDArray[np.float32],
+                        p_detect: NDArray[np.float32]) -> None:
+    """MexGen's stratified measurement of each row (see :class:`MexGen`), into z, p_detect
+    (rows,): w, power, log_pd (rows, N). Draws M float32 uniforms per row (one per stratum)
+    and then one normal per row, in that order, from ``rng``. The M (particle, detected?)
+    pairs come from the joint mass w_i pD_i ("detected") and the rest ("missed") through
+    :func:`core.particle_sampling.row_counts`. O(N + M) per row.
+    """
+    rows, n = w.shape
+    u = rng.random(rows * m, dtype=np.float32)
+    mass = np.empty(n, np.float32)
+    counts = np.empty(n, np.float32)
+    for r in range(rows):
+        w_total = _F(0.0)
+        mass_total = _F(0.0)
+        w_power = _F(0.0)
+        for i in range(n):
+            wi = w[r, i]
+            mi = wi * exp32(log_pd[r, i])
+            mass[i] = mi
+            w_total += wi
+            mass_total += mi
+            w_power += wi * power[r, i]
+        row_counts(mass, m / w_total, u[r * m:(r + 1) * m], counts)
+        hit_power = _F(0.0)
+        n_hit = _F(0.0)
+        for i in range(n):
+            hit_power += counts[i] * power[r, i]
+            n_hit += counts[i]
+        # where no sample is detected (p_detect below ~1/M) z is the mean over every sample:
+        # finite, and weighted by that small p_detect in the planner
+        k = max(n_hit, _F(1.0))
+        mean = hit_power / k if n_hit > _F(0.0) else w_power / w_total
+        z[r] = mean + rng.standard_normal() * (noise_std_db / math.sqrt(k))
+        p_detect[r] = min(max(mass_total / w_total, _F(0.0)), _F(1.0))
 
 
 def take_rows(

@@ -5,18 +5,20 @@ No positions here, only weights. Two samplers, both vectorised over every row:
 
 - :func:`stratified_counts` / :func:`stratified_indices`: n draws per row, one uniform in each
   stratum [j/n, (j+1)/n) pushed through the row's inverse CDF. Each particle's number of draws
-  follows in closed form from the CDF (no search at all), so the cost is O(N + n) per row. The
+  follows in closed form from the CDF (no search at all), so the cost is O(N + n) per row, in
+  one compiled pass (:func:`row_counts`, which MexGen's kernel calls too). The
   draws are an unbiased sample of the row's distribution whose sample mean has a variance no
   larger than with independent draws (stratification with proportional allocation never
   increases it).
 - :func:`iid_indices`: n independent draws per row by a two-level inverse CDF (blocks of 16
   particles, then the particle within the block).
 
-Why not ``cumsum`` + ``searchsorted``: numpy's cumsum runs ~3.5 ns per element and a random
-binary search ~65 ns per query on this class of CPU (branch mispredictions), which at 8 x 512
-draws per look-ahead step would cost more than the rest of a plan. Block sums come from one
-small float32 matrix product with an upper-triangular matrix instead. CDFs are accumulated in
-float32 (relative error ~1e-6 at N = 20000, far below any sampling error).
+Why not ``cumsum`` + ``searchsorted`` for the independent draws: numpy's cumsum runs ~3.5 ns
+per element and a random binary search ~65 ns per query on this class of CPU (branch
+mispredictions), which at 8 x 512 draws per look-ahead step would cost more than the rest of a
+plan. Block sums come from one small float32 matrix product with an upper-triangular matrix
+instead. Block CDFs are accumulated in float32 (relative error ~1e-6 at N = 20000, far below
+any sampling error); the stratified counts sum each row in float64.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.jit import inline, kernel
 from mexgen_gcs.core.workspace import Workspace
 
 FloatArray = NDArray[np.floating]
@@ -121,18 +124,46 @@ def stratified_counts(
     (B...), default 1, at least the row sum up to rounding), "none" the rest. One uniform U_j
     per stratum [j/n, (j+1)/n) goes through the inverse CDF; the number of draws below a CDF
     value x is ``k + [U_k < x n - k]`` with ``k = floor(x n)``, so particle i gets
-    ``below(cdf_i) - below(cdf_(i-1))`` draws without any search. Returns (B..., N) counts as
-    ``dtype`` (float32 is exact and saves a conversion for a following dot product); row sums
-    <= n_draws. O(N + n) per row. ``scratch``: a workspace for the (rows, N) temporaries (the
-    result then lives in it too, valid until its next use).
+    ``below(cdf_i) - below(cdf_(i-1))`` draws without any search (:func:`row_counts`).
+    Returns (B..., N) counts as ``dtype``; row sums <= n_draws. O(N + n) per row.
+    ``scratch``: a workspace for the (rows, N) result (valid until its next use).
     """
     if n_draws < 1:
         raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
     batch, rows, n, m = _rows(mass)
-    scale = np.full(rows, np.float32(n_draws)) if total is None else (
-        np.float32(n_draws) / np.asarray(total, dtype=np.float32).reshape(rows))
-    counts = _counts_below(_cdf32(m, scratch), scale, n_draws, rng, scratch)
+    scale = np.full(rows, float(n_draws)) if total is None else (
+        float(n_draws) / np.asarray(total, dtype=np.float64).reshape(rows))
+    counts = np.empty((rows, n), np.float32) if scratch is None else scratch.get(
+        "sampling_counts", (rows, n))
+    u = rng.random(rows * n_draws, dtype=np.float32).reshape(rows, n_draws)
+    _counts_kernel(m, scale, u, counts)
     return counts.reshape(*batch, n).astype(dtype, copy=False)
+
+
+@inline
+def row_counts(mass: NDArray[np.float32], scale: float | np.floating[Any],
+               u: NDArray[np.float32],
+               counts: NDArray[np.float32]) -> None:
+    """One row of :func:`stratified_counts` in a kernel: mass (N,), ``scale`` = n_draws /
+    total, u (n_draws,) one uniform per stratum; writes counts (N,). One pass, no search."""
+    n_draws = u.shape[0]
+    top = float(n_draws - 1)
+    cum = 0.0
+    prev = 0.0
+    for i in range(mass.shape[0]):
+        cum += mass[i]
+        y = cum * scale
+        k = math.floor(min(y, top))
+        below = k + (1.0 if u[int(k)] < y - k else 0.0)
+        counts[i] = below - prev
+        prev = below
+
+
+@kernel
+def _counts_kernel(mass: NDArray[np.float32], scale: NDArray[np.float64],
+                   u: NDArray[np.float32], counts: NDArray[np.float32]) -> None:
+    for r in range(mass.shape[0]):
+        row_counts(mass[r], scale[r], u[r], counts[r])
 
 
 def stratified_indices(weights: FloatArray, n_draws: int, rng: np.random.Generator) -> IntArray:
@@ -144,48 +175,11 @@ def stratified_indices(weights: FloatArray, n_draws: int, rng: np.random.Generat
     if n_draws < 1:
         raise ValueError(f"n_draws must be >= 1 (got {n_draws})")
     batch, rows, n, w = _rows(weights)
-    cdf = _cdf32(w)
-    cdf /= cdf[:, -1:]
-    cdf[:, -1] = 1.0  # every row ends at exactly 1: n_draws per row
-    scale = np.full(rows, np.float32(n_draws))
-    counts = _counts_below(cdf, scale, n_draws, rng).astype(np.intp)
-    idx = np.repeat(np.tile(np.arange(n), rows), counts.ravel())
+    # the kernel sums each row in float64, so its last CDF value is n_draws to ~1e-13, above
+    # every float32 uniform: each row gets exactly n_draws
+    counts = stratified_counts(w, n_draws, rng, np.intp, total=w.sum(axis=1, dtype=np.float64))
+    idx = np.repeat(np.tile(np.arange(n), rows), counts.ravel().astype(np.intp))
     return idx.reshape(*batch, n_draws)
-
-
-def _counts_below(
-    cdf: NDArray[np.float32],
-    scale: NDArray[np.float32],
-    n_draws: int,
-    rng: np.random.Generator,
-    scratch: Workspace | None = None,
-) -> NDArray[np.float32]:
-    """Per-particle stratified draw counts (float32) from (rows, N) CDFs; ``cdf * scale`` is in
-    strata units (at most n_draws, up to rounding)."""
-    rows, n = cdf.shape
-
-    def buf(name: str, dtype: type[np.number] = np.float32) -> NDArray[Any] | None:
-        return None if scratch is None else scratch.get(name, (rows, n), dtype)
-
-    y = np.multiply(cdf, scale[:, None], dtype=np.float32, out=buf("sampling_y"))
-    k = np.minimum(y, np.float32(n_draws - 1), out=buf("sampling_k"))
-    np.floor(k, out=k)
-    y -= k  # fraction within the stratum; >= 1 only at the end, where the count is n
-    flat = buf("sampling_flat", np.int32)
-    if flat is None:
-        flat = k.astype(np.int32)
-    else:
-        np.copyto(flat, k, casting="unsafe")
-    flat += (np.arange(rows, dtype=np.int32) * np.int32(n_draws))[:, None]
-    u = rng.random(rows * n_draws, dtype=np.float32)
-    hit = u.take(flat, out=buf("sampling_u"), mode="clip")
-    np.less(hit, y, out=y)  # y <- [U_k < fraction] as 0/1
-    k += y
-    counts = np.empty_like(k) if scratch is None else buf("sampling_counts")
-    assert counts is not None
-    counts[:, 0] = k[:, 0]
-    np.subtract(k[:, 1:], k[:, :-1], out=counts[:, 1:])
-    return counts
 
 
 def iid_indices(weights: FloatArray, n_draws: int, rng: np.random.Generator) -> IntArray:

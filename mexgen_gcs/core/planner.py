@@ -42,9 +42,10 @@ size are planned in turn. A :class:`Planner` keeps its working arrays between pl
 per planning thread); :func:`plan` is the one-off form.
 
 Per-stage wall times (``time.perf_counter``; measuring only, the core reads no clock for its
-decisions): predict = motion model; measure = the generator; update = evaluating the noiseless
-measurement of every particle from every action's pose (a grid the generators also read) and
-the weight update; reward = divergence and discounting. Set-up (paths, pruning, buffers) is in
+decisions): predict = motion model; measure = the generator; update = the noiseless measurement
+of every particle from every action's pose and its detection probability (a grid the
+generators also read); reward = the weight update, the divergence and the discounting, which
+are one compiled pass (:mod:`core.rollout_kernels`). Set-up (paths, pruning, buffers) is in
 ``total_s`` only.
 """
 

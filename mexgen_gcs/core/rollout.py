@@ -59,12 +59,13 @@ taken once. A miss that no particle can explain (pd_max = 1: every 1 - pD = 0) g
 Arrays are float32 with shapes (T, A, R, N'): tags x actions x rollouts x particles, where R is
 the generator's number of rollouts (MC-M: M, otherwise 1) and N' is N padded to a multiple of
 16 (the samplers' block size) with zero-weight copies of particle 0, which never influence a
-result. The only Python loops are over look-ahead steps (and tags for the motion model).
+result. Particle positions are stored (steps, T, 2, N'), east and north as rows, so that the
+compiled loops read them contiguously. Each look-ahead step is two compiled passes
+(:mod:`core.rollout_kernels`: the power grid; the update with its gain) around the generator;
+the only Python loops are over look-ahead steps (and tags for the motion model).
 
 Large arrays live in a :class:`~mexgen_gcs.core.workspace.Workspace` that a
-:class:`~mexgen_gcs.core.planner.Planner` keeps between plans (that module says why). The
-noiseless-power grid (:mod:`core.power_grid`) is evaluated in place for up to ``GRID_CHUNK``
-values at a time, so its size in memory is bounded as well.
+:class:`~mexgen_gcs.core.planner.Planner` keeps between plans (that module says why).
 """
 
 from __future__ import annotations
@@ -79,17 +80,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.generators import BeliefView, MeasurementGenerator
-from mexgen_gcs.core.likelihood import (
-    DetectionTable,
-    bayes_update,
-    likelihood_coefficients,
-    log_likelihood,
-    pooled_log_likelihood,
-)
+from mexgen_gcs.core.likelihood import DetectionTable
 from mexgen_gcs.core.motion import ModeArray, MotionModel
-from mexgen_gcs.core.power_grid import power_grid
 from mexgen_gcs.core.radio import RadioModel
-from mexgen_gcs.core.reward import renyi_gain
+from mexgen_gcs.core.rollout_kernels import grid_params, grid_step, update_step
 from mexgen_gcs.core.workspace import Workspace
 
 FloatArray = NDArray[np.float64]
@@ -97,8 +91,6 @@ Float32Array = NDArray[np.float32]
 
 PAD = 16
 """The particle axis is padded to a multiple of this."""
-GRID_CHUNK = 1 << 16
-"""Most power-grid values (steps x tags x actions x particles) evaluated at once."""
 
 
 class PlanningBelief(Protocol):
@@ -147,31 +139,29 @@ def rollout_gains(
     # 1. predict: tag motion does not depend on the action, so every step is propagated once
     #    for all actions and rollouts.
     t0 = clock()
-    xy = ws.get("xy", (steps, n_tags, 1, 1, n_pad, 2))
+    xy = ws.get("xy", (steps, n_tags, 2, n_pad))  # east, north rows: the kernels vectorise
     for i, b in enumerate(beliefs):
         state, mode = b.states, b.modes
         for k in range(steps):
             state, mode = b.motion.propagate(state, mode, step_s, rng)
-            xy[k, i, 0, 0, :n] = state[:, :2]
-    xy[..., n:, :] = xy[..., :1, :]
+            xy[k, i, :, :n] = state[:, :2].T
+    xy[..., n:] = xy[..., :1]
     offset, exponent = _radio_draws(beliefs, n, n_pad, radio)
     t1 = clock()
 
-    rx = np.empty((steps, 1, n_act, 1, 3), dtype=np.float32)  # receiver pose per step, action
-    rx[..., :2] = paths[:, None, :, None, :]
+    rx = np.empty((steps, n_act, 3), dtype=np.float32)  # receiver pose per step, action
+    rx[..., :2] = paths
     rx[..., 2] = alt_m
-    yaw = headings_rad.astype(np.float32)[None, :, None]  # (1, A, 1) against rows (T, A, R)
-    yaw_grid = yaw[..., None]  # (1, A, 1, 1) against particles (T, A, 1, N')
-    # The noiseless power of every particle from every action's pose (and what the update
-    # derives from it) is evaluated for a chunk of steps at a time, into workspace buffers.
-    chunk = max(1, GRID_CHUNK // (n_tags * n_act * n_pad))
-    grid_shape = (min(chunk, steps), n_tags, n_act, 1, n_pad)
+    yaw = headings_rad.astype(np.float32)
+    yaw_rows = yaw[None, :, None]  # (1, A, 1) against rows (T, A, R)
+    none = np.zeros((0, 0), np.float32)
+    params = grid_params(radio.p0_db, radio.path_loss_exponent, radio.d0_m, radio.front_back_db,
+                         radio.min_distance_m, table.inv_step, table.offset)
+    tables = table.arrays(alpha)
+    grid_shape = (n_tags, n_act, n_pad)
     power = ws.get("power", grid_shape)
     log_pd = ws.get("log_pd", grid_shape)
-    # MC rollouts share each action's grid: their likelihoods are one matrix product each
-    coef = ws.get("coef", (grid_shape[0], n_tags, n_act, 2, n_pad)) if n_roll > 1 else None
-    grid_scratch = [ws.get(f"grid{j}", grid_shape) for j in range(3)]
-    lut_scratch = (ws.get("lut_f", grid_shape), ws.get("lut_i", grid_shape, np.intp))
+    index = ws.get("index", grid_shape, np.int32)
     timing["predict"] += t1 - t0
 
     shape = (n_tags, n_act, n_roll, n_pad)
@@ -184,86 +174,42 @@ def rollout_gains(
     w[..., n:] = 0.0
     log_w_next = ws.get("log_w_next", shape)
     w_next = ws.get("w_next", shape)
-    scratch = ws.get("scratch", shape)
-    miss_grid = (ws.get("miss", grid_shape[1:]), ws.get("miss_pow", grid_shape[1:]))
+    log_total_next: FloatArray = np.empty(shape[:-1])
     value = np.zeros(shape[:-1])
+    offset_grid = none if offset is None else offset.reshape(n_tags, n_pad)
+    exponent_grid = none if exponent is None else exponent.reshape(n_tags, n_pad)
+    inv_2r = 0.5 / radio.noise_var
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
         t2 = clock()
-        j = k % chunk
-        if j == 0:
-            ks = slice(k, k + chunk)
-            c = len(range(steps)[ks])
-            power_grid(radio, xy[ks], rx[ks, ..., None, :], yaw_grid, power[:c],
-                       [g[:c] for g in grid_scratch], offset, exponent)
-            # the table index stays in lut_scratch[1] for this chunk's miss lookups
-            idx = table.index(power[:c], (lut_scratch[0][:c], lut_scratch[1][:c]),
-                              bounded=True)
-            table.take_log_pd(idx, out=log_pd[:c])
-            if coef is not None:
-                likelihood_coefficients(power[:c, ..., 0, :], log_pd[:c, ..., 0, :],
-                                        radio.noise_var, out=coef[:c])
-            t_grid = clock()
-            update_s += t_grid - t2
-            t2 = t_grid
-        rx_k = rx[k]
+        grid_step(xy[k], rx[k], yaw, offset_grid, exponent_grid, params, tables.log_pd,
+                  power, log_pd, index)
+        t3 = clock()
         view = BeliefView(
             weights=w,
-            positions_m=xy[k],
-            power_db=power[j],
-            log_pd=log_pd[j],
-            mean_power=partial(_mean_power, radio, rx=rx_k, yaw=yaw, offset=offset,
-                               exponent=exponent),
+            positions_m=xy[k].transpose(0, 2, 1)[:, None, None],
+            power_db=power[:, :, None, :],
+            log_pd=log_pd[:, :, None, :],
+            mean_power=partial(_mean_power, radio, rx=rx[k][None, :, None, :], yaw=yaw_rows,
+                               offset=offset, exponent=exponent),
             detection_probability=radio.detection_probability,  # type: ignore[arg-type]
             noise_std_db=radio.noise_std_db,
             scratch=ws,
         )
         # 2. measure
         meas = generator.generate(view, rng)
-        t3 = clock()
-        # 3. update: log_w_next <- the log-likelihood of the generated outcome
-        p_det = meas.p_detect
-        q: Float32Array | None = None  # weight of the missed branch ("branches")
-        if not _uncertain(p_det):
-            # every pulse detected (p = 1), or MC's sampled outcomes (0 or 1): one branch
-            log_likelihood(meas.z_db, p_det > 0.0, power[j], log_pd[j], table,
-                           radio.noise_var, out=log_w_next,
-                           coef=None if coef is None else coef[j])
-        elif pooled:  # the likelihood of the expected outcome (pD N)^p (1 - pD)^(1 - p)
-            gap = table.take_log_miss_gap(lut_scratch[1][j], out=miss_grid[0])
-            pooled_log_likelihood(meas.z_db, p_det, power[j], log_pd[j], gap,
-                                  radio.noise_var, log_w_next, scratch)
-        else:  # "branches": the detected branch first, where detection is possible
-            detected = p_det > 0.0
-            log_likelihood(meas.z_db, detected, power[j], log_pd[j], table,
-                           radio.noise_var, out=log_w_next)
-            q = np.where(detected, np.float32(1.0) - p_det, np.float32(0.0))
-            if not q.any():
-                q = None
-        # log_w_next <- posterior log-weights; the linear ones go to w, unless the missed
-        # branch still needs the prior's (then to w_next)
-        post = bayes_update(log_w, log_w_next, out_weights=w if q is None else w_next)
         t4 = clock()
-        # 4. reward of that branch
-        gain = renyi_gain(log_w_next, log_w, alpha, scratch, post.log_total, log_total)
+        # 3. update and 4. reward (core.rollout_kernels)
+        update_step(power, log_pd, index, meas.z_db, meas.p_detect, log_w, w, log_total,
+                    tables.update, inv_2r, alpha, pooled, discount**k, log_w_next, w_next,
+                    log_total_next, value)
+        log_w, log_w_next = log_w_next, log_w
+        w, w_next = w_next, w
+        log_total, log_total_next = log_total_next, log_total
         t5 = clock()
-        log_total_next = post.log_total
-        if q is not None:
-            # the missed branch (see the module docstring); the carried belief -> w_next
-            idx = lut_scratch[1][j]
-            miss = table.take_miss(idx, out=miss_grid[0])
-            miss_pow = table.take_miss_pow(idx, alpha, out=miss_grid[1])
-            gain, log_total_next = _mix_missed_branch(
-                q.astype(np.float64), gain, w, w_next, log_w_next, log_total,
-                post.log_total, miss, miss_pow, alpha)
-            w, w_next = w_next, w
-        t6 = clock()
-        value += discount**k * gain
-        log_w, log_w_next, log_total = log_w_next, log_w, log_total_next
-        t7 = clock()
-        measure_s += t3 - t2
-        update_s += (t4 - t3) + (t6 - t5)
-        reward_s += (t5 - t4) + (t7 - t6)
+        update_s += t3 - t2
+        measure_s += t4 - t3
+        reward_s += t5 - t4
     timing["measure"] += measure_s
     timing["update"] += update_s
     timing["reward"] += reward_s
@@ -302,57 +248,3 @@ def _mean_power(radio: RadioModel, pos: NDArray[np.floating], rx: NDArray[np.flo
     n = radio.path_loss_exponent if exponent is None else exponent.mean(axis=-1)
     b = 0.0 if offset is None else offset.mean(axis=-1)
     return radio.p0_db + b + n * log_term + gain
-
-
-def _uncertain(p_detect: Float32Array) -> bool:
-    """Whether any row's outcome is uncertain (0 < p < 1)."""
-    return bool(np.any((p_detect > 0.0) & (p_detect < 1.0)))
-
-
-def _mix_missed_branch(
-    q: FloatArray,
-    gain_det: FloatArray,
-    w: Float32Array,
-    w_det: Float32Array,
-    log_w_det: Float32Array,
-    log_total: FloatArray,
-    log_total_det: FloatArray,
-    miss: Float32Array,
-    miss_pow: Float32Array,
-    alpha: float,
-) -> tuple[FloatArray, FloatArray]:
-    """Add the missed branch with weight q = 1 - p (0 where the outcome is certain), in place.
-
-    w: (B..., N) the predicted (prior) weights, row sums exp(log_total); w_det, log_w_det: the
-    detected branch's posterior (max-shifted, row sums exp(log_total_det)); miss, miss_pow:
-    1 - pD and (1 - pD)^alpha of every particle, (B'..., N) broadcasting to the rows. Returns
-    the expected gain per row and the log row totals of the carried belief, which replaces
-    w_det (linear) and log_w_det (log) with entries <= 1 (<= 0). Rows with q = 0 keep the
-    detected branch. O(B N): two dot products, four passes and one log.
-    """
-    # missed-branch sums over the particles, in the linear domain: 1 - pD >= 1 - pd_max, so
-    # nothing underflows unless pd_max = 1 (then those particles cannot be missed at all)
-    s_miss = np.vecdot(w, miss, dtype=np.float32).astype(np.float64)
-    a_miss = np.vecdot(w, miss_pow, dtype=np.float32).astype(np.float64)
-    # a miss no particle can explain (every 1 - pD = 0) is impossible: weight 0
-    q = np.where(s_miss > 0.0, q, 0.0)
-    s_safe = np.where(q > 0.0, s_miss, 1.0)
-    a_safe = np.where(q > 0.0, a_miss, 1.0)
-    # Renyi(missed, prior) = log(sum w m^a / (S^a W^(1 - a))) / (a - 1)
-    gain_miss = (np.log(a_safe) - alpha * np.log(s_safe) - (1.0 - alpha) * log_total) / (
-        alpha - 1.0)
-    gain_miss = np.where(q > 0.0, np.maximum(gain_miss, 0.0), 0.0)
-    gain = (1.0 - q) * gain_det + q * gain_miss
-    # carried belief: (1 - q) w_det / S_det + q w m / S_miss, scaled so its entries are <= 1
-    c_det = (1.0 - q) * np.exp(-log_total_det)
-    c_miss = q / s_safe
-    scale = c_det + c_miss
-    f_det = (c_det / scale).astype(np.float32)[..., None]
-    f_miss = (c_miss / scale).astype(np.float32)[..., None]
-    mixed = np.multiply(w, miss, out=log_w_det)  # log_w_det is free: reuse it as scratch
-    mixed *= f_miss
-    w_det *= f_det
-    w_det += mixed
-    with np.errstate(divide="ignore"):  # weights that underflowed to 0: -inf
-        np.log(w_det, out=log_w_det)
-    return gain, -np.log(scale)

@@ -176,7 +176,8 @@ class Plan(Record):
     rewards: list[float | None] = f("Reward of each candidate heading (null: not finite).")
     chosen_heading_deg: float = f("The heading flown, compass degrees.", "deg")
     timing_ms: dict[str, float] = f("Wall time per planner stage (predict, measure, update, "
-                                    "reward, total).", "ms")
+                                    "reward, total; core.planner says what each covers).",
+                                    "ms")
     vehicle_en_m: EN = f("Vehicle position planned from, [east, north].", "m", "ENU about home")
     all_pruned: bool = f("Every action was pruned (the heading points at the area centre).")
 
