@@ -131,25 +131,3 @@ def test_roughness_levels_keep_their_particles_and_share_the_weight():
     w = np.exp(f.log_w)
     smooth = float(w[levels == 0].sum())
     assert smooth > 0.9  # the data (no shadowing) favour the smooth level
-
-
-@pytest.mark.parametrize("pd_max", [1.0, 0.95, 0.999999])
-def test_detection_far_above_the_sensitivity_is_certain_as_the_full_formula(pd_max: float) -> None:
-    """The shortcut for particles all >= 12 spreads above the sensitivity gives what the full
-    probit formula gives (to float64 precision); one particle below it takes the full path."""
-    from scipy.special import log_ndtr
-
-    from mexgen_gcs.core.radio_belief import Predicted, log_detection_probability
-
-    radio = RadioModel(sensitivity_db=-120.0, detection_spread_db=2.0, pd_max=pd_max)
-    far = Predicted.known(np.array([-96.0, -80.0, -40.0]))  # x = 12, 20, 40
-    log_pd, log_miss = log_detection_probability(radio, far)
-    x = (far.mean_db + 120.0) / 2.0
-    lp = math.log(pd_max)
-    full_pd = lp + log_ndtr(x)
-    full_miss = np.logaddexp(math.log1p(-min(pd_max, 1.0 - 1e-12)), lp + log_ndtr(-x))
-    np.testing.assert_allclose(log_pd, full_pd, rtol=0, atol=1e-30)
-    np.testing.assert_array_equal(log_miss, full_miss)
-    near = Predicted.known(np.array([-96.0, -119.0]))  # x = 12 and 0.5: the full path
-    log_pd, _ = log_detection_probability(radio, near)
-    assert log_pd[1] == pytest.approx(lp + float(log_ndtr(0.5)))
