@@ -146,7 +146,11 @@ class BernoulliFilter:
         self.radio_belief = self._radio_prior(n)
         self._params = radio_params(radio, self.unknowns.outlier_prob)
         levels = np.asarray(self.unknowns.levels)  # (L, 2) shadowing std, model error std
-        self._level_extra_var = np.ascontiguousarray(levels[:, 0] ** 2 + levels[:, 1] ** 2)
+        self._level_shadow_var = np.ascontiguousarray(levels[:, 0] ** 2)
+        self._level_noise_var = radio.noise_var + levels[:, 1] ** 2  # receiver + model error
+        self._level_extra_var = self._level_shadow_var + levels[:, 1] ** 2
+        step = len(levels)
+        self._level_slots = (n - np.arange(step) + step - 1) // step  # particles per level
         speed = float(getattr(motion, "speed_max_m_s", 0.0))
         dist = self.unknowns.shadowing_distance_m
         self.shadow_memory = ShadowMemory(math.inf if speed <= 0.0 else 3.0 * dist / speed)
@@ -225,12 +229,10 @@ class BernoulliFilter:
         conditioning, shared by the particles of a roughness level, is solved here per
         level; the per-particle work is one kernel. Returns (log mean likelihood, per-level
         sum w, sum w^2)."""
-        unc, radio, mem = self.unknowns, self.radio, self.shadow_memory
+        unc, mem = self.unknowns, self.shadow_memory
         idx, d_new = mem.neighbours(self.t_s, rx[:2], unc.shadowing_distance_m)
-        cond = [shadow_conditioning(mem, idx, d_new, sh * sh, radio.noise_var + me * me,
-                                    unc.shadowing_distance_m) for sh, me in unc.levels]
-        beta = np.ascontiguousarray(np.array([c[0] for c in cond]).reshape(len(cond), idx.size))
-        r2 = np.array([c[1] for c in cond])
+        beta, r2 = shadow_conditioning(mem, idx, d_new, self._level_shadow_var,
+                                       self._level_noise_var, unc.shadowing_distance_m)
         log_mean_l, mass, s1, s2 = robust_update(
             self.states, belief.mean, belief.cov, belief.level, rx, yaw,
             np.ascontiguousarray(mem.poses[idx]), np.ascontiguousarray(mem.z_db[idx]), beta, r2,
@@ -246,13 +248,11 @@ class BernoulliFilter:
 
     def _resample_degenerate_levels(self, s1: FloatArray, s2: FloatArray) -> None:
         """Resample each roughness level whose effective sample size (sum w)^2 / sum w^2
-        (from its (L,) sums ``s1``, ``s2``) is below the configured fraction of its slots."""
-        step = self.n_levels
-        count = (self.log_w.shape[0] - np.arange(step) + step - 1) // step
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ess = s1 * s1 / s2
-        for level in np.flatnonzero(ess < self.config.resample_ess_fraction * count):
-            self.resample(int(level))  # NaN (a dead level) never resamples
+        (from its (L,) sums ``s1``, ``s2``) is below the configured fraction of its slots;
+        a dead level (s1 = s2 = 0) never resamples."""
+        frac = self.config.resample_ess_fraction
+        for level in np.flatnonzero(s1 * s1 < frac * self._level_slots * s2):
+            self.resample(int(level))
 
     def resample(self, level: int | None = None) -> None:
         """Systematic resampling to equal weights, then roughening of the states.

@@ -40,6 +40,7 @@ FloatArray = NDArray[np.float64]
 LevelArray = NDArray[np.int8]
 
 _SQRT1_2 = math.sqrt(0.5)
+_MINUS_10_OVER_LN10 = -10.0 / math.log(10.0)
 CERTAIN_X = 12.0
 """Standard scores above which detection is certain in float64: log Phi(12) = -2e-33 and
 Phi(-12) = 2e-33, negligible beside the miss floor 1 - pd_max >= 1e-12."""
@@ -94,7 +95,7 @@ def geometry(px: float, py: float, rx: float, ry: float, rz: float, sin_yaw: flo
     dy = py - ry
     horiz2 = dx * dx + dy * dy
     dist = math.sqrt(max(horiz2 + rz * rz, p.min_distance2_m2))
-    log_term = -10.0 * math.log10(dist / p.d0_m)
+    log_term = _MINUS_10_OVER_LN10 * math.log(dist / p.d0_m)  # log is faster than log10
     if p.front_back_db > 0.0:
         # cos(bearing - yaw) cos(elev) - cos(elev), finite when the tag is right below
         gain = 0.5 * p.front_back_db * ((dx * sin_yaw + dy * cos_yaw) - math.sqrt(horiz2)) / dist
@@ -232,10 +233,12 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
     nb_cos = np.cos(nb_poses[:, 3])
     z_shift = np.zeros(n_levels)  # sum_k beta_k z_k: the prewhitening of z, per level
     beta_sum = np.zeros(n_levels)
+    conditioned = np.zeros(n_levels, np.bool_)  # any beta_k != 0 (else no neighbour terms)
     for lev in range(n_levels):
         for k in range(m):
             z_shift[lev] += beta[lev, k] * nb_z_db[k]
             beta_sum[lev] += beta[lev, k]
+            conditioned[lev] |= beta[lev, k] != 0.0
     lik = np.empty(n)
     g_in = np.empty(nz)
     share = np.empty(nz)
@@ -245,7 +248,7 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
         l0, g0 = geometry(states[i, 0], states[i, 1], rx, ry, rz, sin_yaw, cos_yaw, p)
         lt = l0  # prewhitened regressors: H~ = [one, lt], c~ = base
         base = p.p0_db * (1.0 - beta_sum[lev]) + g0
-        for k in range(m):
+        for k in range(m if conditioned[lev] else 0):
             lk, gk = geometry(states[i, 0], states[i, 1], nb_poses[k, 0], nb_poses[k, 1],
                               nb_poses[k, 2], nb_sin[k], nb_cos[k], p)
             lt -= beta[lev, k] * lk

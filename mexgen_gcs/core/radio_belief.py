@@ -57,6 +57,7 @@ from dataclasses import field as dataclass_field
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.jit import kernel
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.errors import EstimationError
 
@@ -229,16 +230,57 @@ class ShadowMemory:
 
 
 def shadow_conditioning(memory: ShadowMemory, idx: NDArray[np.intp], d_new: FloatArray,
-                        shadow_var: float, noise_var: float, distance_m: float
-                        ) -> tuple[FloatArray, float]:
-    """(beta (m,), r^2) of a new detection given the mean powers of cells ``idx`` at
-    distances d_new (a cell of n pulses has noise R / n)."""
-    if idx.size == 0 or shadow_var <= 0.0:
-        return np.zeros(idx.size), shadow_var + noise_var
-    p = memory.poses[idx, :2]
-    dd = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
-    cmat = shadow_var * np.exp(-dd / distance_m)
-    cmat[np.diag_indices(idx.size)] += noise_var / memory.n[idx]
-    c = shadow_var * np.exp(-d_new / distance_m)
-    beta: FloatArray = np.linalg.solve(cmat, c).astype(np.float64, copy=False)
-    return beta, max(shadow_var + noise_var - float(c @ beta), 1e-9)
+                        shadow_var: FloatArray, noise_var: FloatArray, distance_m: float
+                        ) -> tuple[FloatArray, FloatArray]:
+    """(beta (L, m), r^2 (L,)) of a new detection given the mean powers of cells ``idx``
+    (m,) at distances d_new (m,) from it, for L hypotheses of the shadowing and noise
+    variances ``shadow_var``, ``noise_var`` (L,) each (a cell of n pulses has noise R / n)."""
+    return _condition(np.ascontiguousarray(memory.poses[idx, :2]),
+                      np.ascontiguousarray(memory.n[idx]), np.ascontiguousarray(d_new),
+                      np.ascontiguousarray(shadow_var, dtype=np.float64),
+                      np.ascontiguousarray(noise_var, dtype=np.float64), distance_m)
+
+
+@kernel
+def _condition(cells_xy: FloatArray, n_pulses: FloatArray, d_new: FloatArray,
+               shadow_var: FloatArray, noise_var: FloatArray, distance_m: float
+               ) -> tuple[FloatArray, FloatArray]:
+    """beta = (C + R diag(1 / n))^-1 c and r^2 = s + R - c' beta per hypothesis (see the
+    module; C = s exp(-|u_i - u_j| / L), c = s exp(-d_new / L)), by Cholesky: C + R / n is
+    symmetric positive definite (an exponential covariance plus a positive diagonal)."""
+    m = cells_xy.shape[0]
+    n_levels = shadow_var.shape[0]
+    beta = np.zeros((n_levels, m))
+    r2 = shadow_var + noise_var
+    corr = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            dx = cells_xy[i, 0] - cells_xy[j, 0]
+            dy = cells_xy[i, 1] - cells_xy[j, 1]
+            corr[i, j] = math.exp(-math.sqrt(dx * dx + dy * dy) / distance_m)
+    chol = np.empty((m, m))
+    y = np.empty(m)
+    for lev in range(n_levels):
+        sv = shadow_var[lev]
+        if m == 0 or sv <= 0.0:
+            continue
+        for i in range(m):  # lower Cholesky factor of C + R / n
+            for j in range(i + 1):
+                acc = sv * corr[i, j] + (noise_var[lev] / n_pulses[i] if i == j else 0.0)
+                for k in range(j):
+                    acc -= chol[i, k] * chol[j, k]
+                chol[i, j] = math.sqrt(acc) if i == j else acc / chol[j, j]
+        for i in range(m):  # forward: chol y = c
+            acc = sv * math.exp(-d_new[i] / distance_m)
+            for k in range(i):
+                acc -= chol[i, k] * y[k]
+            y[i] = acc / chol[i, i]
+        quad = 0.0
+        for i in range(m - 1, -1, -1):  # back: chol' beta = y; c' beta = y' y
+            acc = y[i]
+            for k in range(i + 1, m):
+                acc -= chol[k, i] * beta[lev, k]
+            beta[lev, i] = acc / chol[i, i]
+            quad += y[i] * y[i]
+        r2[lev] = max(sv + noise_var[lev] - quad, 1e-9)
+    return beta, r2

@@ -76,9 +76,11 @@ def test_shadowing_heard_again_adds_little():
         mem.add(float(k), rx + np.array([k * 0.1, 0.0, 0.0]), 0.0, -50.0 + k % 3)
     assert mem.count == 1 and mem.n[0] == 30 and mem.z_db[0] == pytest.approx(-49.0)
     idx, d = mem.neighbours(40.0, rx[:2], 50.0)
-    beta, r2 = shadow_conditioning(mem, idx, d, 16.0, 6.25, 50.0)
-    assert beta.sum() == pytest.approx(16.0 / (16.0 + 6.25 / 30), abs=1e-6)
-    assert r2 == pytest.approx(6.25 + 16.0 * (6.25 / 30) / (16.0 + 6.25 / 30))
+    beta, r2 = shadow_conditioning(mem, idx, d, np.array([16.0, 0.0]), np.array([6.25, 4.0]),
+                                   50.0)
+    assert beta[0].sum() == pytest.approx(16.0 / (16.0 + 6.25 / 30), abs=1e-6)
+    assert r2[0] == pytest.approx(6.25 + 16.0 * (6.25 / 30) / (16.0 + 6.25 / 30))
+    assert np.all(beta[1] == 0.0) and r2[1] == 4.0  # no shadowing: nothing to condition on
     # another heading is another cell (the antenna pattern differs); far away: no neighbours
     mem.add(41.0, rx, math.pi, -55.0)
     assert mem.count == 2
@@ -131,3 +133,25 @@ def test_roughness_levels_keep_their_particles_and_share_the_weight():
     w = np.exp(f.log_w)
     smooth = float(w[levels == 0].sum())
     assert smooth > 0.9  # the data (no shadowing) favour the smooth level
+
+
+def test_shadow_conditioning_solves_the_gaussian_process_equations():
+    """beta = (C + R / n)^-1 c and r^2 = s + R - c' beta (Cholesky in the kernel) against
+    numpy's solve, for several cells of several pulses and several hypotheses."""
+    rng = np.random.default_rng(3)
+    mem = ShadowMemory()
+    for k in range(40):
+        mem.add(float(k), np.array([*rng.uniform(0, 120, 2), 40.0]), 0.0, -50.0)
+    idx, d = mem.neighbours(40.0, np.array([60.0, 60.0]), 50.0)
+    assert idx.size == 6 and mem.n[idx].max() >= 1
+    shadow, noise = np.array([16.0, 4.0, 0.0]), np.array([6.25, 15.25, 6.25])
+    beta, r2 = shadow_conditioning(mem, idx, d, shadow, noise, 50.0)
+    p = mem.poses[idx, :2]
+    dd = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    for lev in range(2):
+        cmat = shadow[lev] * np.exp(-dd / 50.0) + np.diag(noise[lev] / mem.n[idx])
+        c = shadow[lev] * np.exp(-d / 50.0)
+        ref = np.linalg.solve(cmat, c)
+        np.testing.assert_allclose(beta[lev], ref, rtol=1e-9, atol=1e-12)
+        assert r2[lev] == pytest.approx(shadow[lev] + noise[lev] - c @ ref, rel=1e-12)
+    assert np.all(beta[2] == 0.0) and r2[2] == 6.25
