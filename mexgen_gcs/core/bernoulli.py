@@ -52,12 +52,14 @@ from mexgen_gcs.core.radio_belief import (
 from mexgen_gcs.core.resampling import (
     effective_sample_size,
     normalise_log_weights,
-    roughen,
+    resample_roughen,
     systematic_resample,
 )
 from mexgen_gcs.errors import EstimationError
 
 FloatArray = NDArray[np.float64]
+
+_NO_ROWS2, _NO_ROWS3 = np.zeros((0, 2)), np.zeros((0, 3))  # no radio belief to resample
 LEVEL_CLAIM_MASS = 0.05
 """A roughness level with at least this posterior probability must agree with a claimed
 localisation radius (about the reported position)."""
@@ -264,15 +266,13 @@ class BernoulliFilter:
         step = self.n_levels
         for lev in range(step) if level is None else (level,):
             sl = slice(lev, None, step)
-            lw = self.log_w[sl]
-            norm, log_mass = normalise_log_weights(lw)
-            m = lw.shape[0]
-            idx = systematic_resample(norm, m, self.rng)
-            self.states[sl] = roughen(self.states[sl][idx], self.config.roughening_k, self.rng)
-            self.modes[sl] = self.modes[sl][idx]
-            if self.radio_belief is not None:
-                self.radio_belief.permute(sl, idx)
-            self.log_w[sl] = (log_mass if np.isfinite(log_mass) else -math.log(step)) - math.log(m)
+            belief = self.radio_belief
+            mean, cov = (_NO_ROWS2, _NO_ROWS3) if belief is None else (belief.mean[sl],
+                                                                       belief.cov[sl])
+            log_mass = resample_roughen(self.log_w[sl], self.states[sl], self.modes[sl], mean,
+                                        cov, self.config.roughening_k, self.rng)
+            mass = log_mass if math.isfinite(log_mass) else -math.log(step)
+            self.log_w[sl] = mass - math.log(self.log_w[sl].shape[0])
         self.log_w, _ = normalise_log_weights(self.log_w)
         self.n_resamples += 1
 

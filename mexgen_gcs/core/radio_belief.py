@@ -146,11 +146,6 @@ class RadioBelief:
         cov[:, NN] = unc.path_loss_exponent_std**2
         return cls(mean, cov, level)
 
-    def permute(self, rows: slice, idx: NDArray[np.intp]) -> None:
-        """Rows ``rows`` become their own rows ``idx`` (resampling within a level)."""
-        self.mean[rows] = self.mean[rows][idx]
-        self.cov[rows] = self.cov[rows][idx]
-
     def rebirth(self, rows: NDArray[np.bool_], radio: RadioModel, unc: RadioUncertainty,
                 tag: TagRadioPrior | None) -> None:
         """Rows ``rows`` (N,) return to the prior of their own level (births)."""
