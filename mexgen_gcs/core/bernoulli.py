@@ -2,7 +2,8 @@
 
 Frame: local ENU metres about home. The belief of one tag is an existence probability ``q``
 and weighted particles ``states (N, 4)`` ``[x, y, vx, vy]`` with IMM modes ``(N,) int8`` and
-log-weights ``(N,)`` normalised in one place (``resampling.normalise_log_weights``).
+log-weights ``(N,)``, normalised by the update's kernel (:mod:`core.filter_kernels`) and after
+resampling (``resampling.normalise_log_weights``).
 
 Prediction (per pulse period ``dt``)::
 
@@ -19,15 +20,16 @@ more = clutter too), ``kappa = clutter intensity per dB``::
     L(x) = 1 - pD(x) + sum_z pD(x) g(z | x) / kappa
     q_upd = q <L> / (1 - q + q <L>),    w_i <- w_i L(x_i)
 
-computed on the log scale so that no weight underflow produces a NaN. With radio unknowns
+with L >= 1 - pd_max > 0 as a probability and the weights on the log scale, so that no
+weight underflow produces a NaN. With radio unknowns
 (``FilterConfig.radio_unknowns``) each particle also carries a Gaussian over the tag's power
 offset, the path-loss exponent and the shadowing (:mod:`core.radio_belief`): ``pD`` and ``g``
 are then marginal over them, ``g`` is an outlier mixture, and each detection updates the
 Gaussians by a Kalman step (a Rao-Blackwellised particle filter). The update is one compiled
-pass over the particles (:mod:`core.filter_kernels`), the prediction one more
-(:mod:`core.motion`). Resampling is
-systematic when the effective sample size drops below a fraction of N, followed by
-roughening. Every random draw uses the generator handed to the constructor.
+pass over the particles (:mod:`core.filter_kernels`), the motion one more
+(:mod:`core.motion`). Resampling is systematic when the effective sample size drops below a
+fraction of N, followed by roughening (one compiled pass, :mod:`core.resampling`). Every
+random draw uses the generator handed to the constructor.
 """
 
 from __future__ import annotations
