@@ -2,7 +2,8 @@
 
 Frame: local ENU metres about home. The belief of one tag is an existence probability ``q``
 and weighted particles ``states (N, 4)`` ``[x, y, vx, vy]`` with IMM modes ``(N,) int8`` and
-log-weights ``(N,)`` normalised in one place (``resampling.normalise_log_weights``).
+log-weights ``(N,)``, normalised by the update's kernel (:mod:`core.filter_kernels`) and after
+resampling (``resampling.normalise_log_weights``).
 
 Prediction (per pulse period ``dt``)::
 
@@ -19,13 +20,16 @@ more = clutter too), ``kappa = clutter intensity per dB``::
     L(x) = 1 - pD(x) + sum_z pD(x) g(z | x) / kappa
     q_upd = q <L> / (1 - q + q <L>),    w_i <- w_i L(x_i)
 
-computed on the log scale so that no weight underflow produces a NaN. With radio unknowns
+with L >= 1 - pd_max > 0 as a probability and the weights on the log scale, so that no
+weight underflow produces a NaN. With radio unknowns
 (``FilterConfig.radio_unknowns``) each particle also carries a Gaussian over the tag's power
 offset, the path-loss exponent and the shadowing (:mod:`core.radio_belief`): ``pD`` and ``g``
 are then marginal over them, ``g`` is an outlier mixture, and each detection updates the
-Gaussians by a Kalman step (a Rao-Blackwellised particle filter). Resampling is
-systematic when the effective sample size drops below a fraction of N, followed by
-roughening. Every random draw uses the generator handed to the constructor.
+Gaussians by a Kalman step (a Rao-Blackwellised particle filter). The update is one compiled
+pass over the particles (:mod:`core.filter_kernels`), the motion one more
+(:mod:`core.motion`). Resampling is systematic when the effective sample size drops below a
+fraction of N, followed by roughening (one compiled pass, :mod:`core.resampling`). Every
+random draw uses the generator handed to the constructor.
 """
 
 from __future__ import annotations
@@ -37,33 +41,27 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.filter_kernels import classic_update, radio_params, robust_update
 from mexgen_gcs.core.motion import ModeArray, MotionModel
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import (
-    Predicted,
     RadioBelief,
     RadioUncertainty,
     ShadowMemory,
     TagRadioPrior,
-    kalman_update,
-    log_detected_density,
-    log_detection_probability,
-    predict_power,
-    predict_prewhitened,
     shadow_conditioning,
 )
 from mexgen_gcs.core.resampling import (
     effective_sample_size,
-    logsumexp,
     normalise_log_weights,
-    roughen,
+    resample_roughen,
     systematic_resample,
 )
 from mexgen_gcs.errors import EstimationError
 
 FloatArray = NDArray[np.float64]
 
-_MIN_KAPPA = 1e-300
+_NO_ROWS2, _NO_ROWS3 = np.zeros((0, 2)), np.zeros((0, 3))  # no radio belief to resample
 LEVEL_CLAIM_MASS = 0.05
 """A roughness level with at least this posterior probability must agree with a claimed
 localisation radius (about the reported position)."""
@@ -150,6 +148,13 @@ class BernoulliFilter:
         self.states, self.modes = self._birth(n)
         self.states = np.ascontiguousarray(self.states)
         self.radio_belief = self._radio_prior(n)
+        self._params = radio_params(radio, self.unknowns.outlier_prob)
+        levels = np.asarray(self.unknowns.levels)  # (L, 2) shadowing std, model error std
+        self._level_shadow_var = np.ascontiguousarray(levels[:, 0] ** 2)
+        self._level_noise_var = radio.noise_var + levels[:, 1] ** 2  # receiver + model error
+        self._level_extra_var = self._level_shadow_var + levels[:, 1] ** 2
+        step = len(levels)
+        self._level_slots = (n - np.arange(step) + step - 1) // step  # particles per level
         speed = float(getattr(motion, "speed_max_m_s", 0.0))
         dist = self.unknowns.shadowing_distance_m
         self.shadow_memory = ShadowMemory(math.inf if speed <= 0.0 else 3.0 * dist / speed)
@@ -199,74 +204,58 @@ class BernoulliFilter:
     def update(self, z_db: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float) -> None:
         """Bernoulli update with one pulse period's measurements z_db (m,) (empty = missed
         detection) taken at receiver position rx_xyz (3,) ENU with heading rx_yaw_rad."""
-        z = np.asarray(z_db, dtype=np.float64).reshape(-1)
-        rx = np.asarray(rx_xyz, dtype=np.float64)
-        if not np.all(np.isfinite(z)) or not np.all(np.isfinite(rx)):
+        z = np.ascontiguousarray(z_db, dtype=np.float64).reshape(-1)
+        rx = np.ascontiguousarray(rx_xyz, dtype=np.float64).reshape(3)
+        if not math.isfinite(float(z.sum()) + float(rx.sum())):
             raise EstimationError("update needs finite measurements and receiver position")
         belief = self.radio_belief
-        xy = self.states[:, :2]
         if belief is None:
-            pred = predict_power(self.radio, None, xy, rx, rx_yaw_rad)
-            log_l, _ = bernoulli_log_likelihood(self.radio, self.unknowns, pred, z,
-                                                self.radio.noise_var)
+            log_mean_l, ess = classic_update(self.states, rx, float(rx_yaw_rad), z, self.log_w,
+                                             self._params)
         else:
-            log_l = self._robust_update(belief, z, rx, rx_yaw_rad)
-        self.log_w, self.existence = bernoulli_update(self.log_w, self.existence, log_l)
+            log_mean_l, s1, s2 = self._robust_update(belief, z, rx, float(rx_yaw_rad))
         self.n_updates += 1
-        self._resample_if_degenerate()
+        if not math.isfinite(log_mean_l):
+            # every particle impossible: the weights keep their prior shape (unchanged since
+            # the last update's degeneracy check, so no resampling either)
+            return
+        self.existence = posterior_existence(self.existence, log_mean_l)
+        if belief is None:
+            if ess < self.config.resample_ess_fraction * self.log_w.shape[0]:
+                self.resample()
+        else:
+            self._resample_degenerate_levels(s1, s2)
 
-    def _robust_update(self, belief: RadioBelief, z: FloatArray, rx: FloatArray,
-                       yaw: float) -> FloatArray:
-        """log L per particle with the radio unknowns (core.radio_belief), updating each
-        particle's Gaussian. One vectorised pass: only the shadowing conditioning differs
-        between roughness levels, and it is indexed by each particle's level."""
-        unc, radio, mem = self.unknowns, self.radio, self.shadow_memory
-        levels = np.asarray(unc.levels)  # (L, 2) shadowing std, model error std
-        lev = belief.level
+    def _robust_update(self, belief: RadioBelief, z: FloatArray, rx: FloatArray, yaw: float
+                       ) -> tuple[float, FloatArray, FloatArray]:
+        """The update with the radio unknowns (core.radio_belief): every particle's Gaussian
+        moves, and the detections most likely the tag's are remembered. The shadowing
+        conditioning, shared by the particles of a roughness level, is solved here per
+        level; the per-particle work is one kernel. Returns (log mean likelihood, per-level
+        sum w, sum w^2)."""
+        unc, mem = self.unknowns, self.shadow_memory
         idx, d_new = mem.neighbours(self.t_s, rx[:2], unc.shadowing_distance_m)
-        cond = [shadow_conditioning(mem, idx, d_new, sh * sh, radio.noise_var + me * me,
-                                    unc.shadowing_distance_m) for sh, me in levels]
-        beta = np.array([c[0] for c in cond]).reshape(len(cond), idx.size)[lev]  # (N, m)
-        r2 = np.array([c[1] for c in cond])[lev]  # (N,)
-        extra = (levels[:, 0] ** 2 + levels[:, 1] ** 2)[lev]
-        xy = self.states[:, :2]
-        marginal, pred = predict_prewhitened(radio, belief, xy, rx, yaw, mem, idx, beta)
-        z_t = z[None, :] - (beta @ mem.z_db[idx])[:, None] if idx.size else np.broadcast_to(
-            z, (xy.shape[0], z.size))
-        log_l, gains = bernoulli_log_likelihood(radio, unc, marginal, z_t, r2,
-                                                prewhitened=pred, extra_var=extra)
-        for j in range(z.size):
-            if j:  # the Gaussians moved: predict again for the next measurement
-                marginal, pred = predict_prewhitened(radio, belief, xy, rx, yaw, mem, idx, beta)
-            kalman_update(belief, pred, z_t[:, j], gains[:, j], r2)
-        if z.size:
-            w = np.exp(self.log_w)
-            for j in range(z.size):  # remember the pulses that are most likely the tag's
-                if float(w @ gains[:, j]) > 0.5:
-                    mem.add(self.t_s, rx, yaw, float(z[j]))
-        return log_l
+        beta, r2 = shadow_conditioning(mem, idx, d_new, self._level_shadow_var,
+                                       self._level_noise_var, unc.shadowing_distance_m)
+        log_mean_l, mass, s1, s2 = robust_update(
+            self.states, belief.mean, belief.cov, belief.level, rx, yaw,
+            np.ascontiguousarray(mem.poses[idx]), np.ascontiguousarray(mem.z_db[idx]), beta, r2,
+            self._level_extra_var, z, self.log_w, self._params)
+        for j in np.flatnonzero(mass > 0.5):  # remember the pulses most likely the tag's
+            mem.add(self.t_s, rx, yaw, float(z[j]))
+        return log_mean_l, s1, s2
 
     @property
     def n_levels(self) -> int:
         """Roughness hypotheses (particle slot i belongs to level i % n_levels)."""
         return 1 if self.radio_belief is None else len(self.unknowns.levels)
 
-    def _resample_if_degenerate(self) -> None:
+    def _resample_degenerate_levels(self, s1: FloatArray, s2: FloatArray) -> None:
+        """Resample each roughness level whose effective sample size (sum w)^2 / sum w^2
+        (from its (L,) sums ``s1``, ``s2``) is below the configured fraction of its slots;
+        a dead level (s1 = s2 = 0) never resamples."""
         frac = self.config.resample_ess_fraction
-        step = self.n_levels
-        if step == 1:
-            if effective_sample_size(self.log_w) < frac * self.log_w.shape[0]:
-                self.resample()
-            return
-        # per-level ESS = (sum w)^2 / sum w^2 within each level's slots
-        w = np.exp(self.log_w - self.log_w.max())
-        lev = np.arange(w.shape[0]) % step
-        s1 = np.bincount(lev, weights=w, minlength=step)
-        s2 = np.bincount(lev, weights=w * w, minlength=step)
-        count = np.bincount(lev, minlength=step)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ess = s1 * s1 / s2
-        for level in np.flatnonzero(ess < frac * count):  # NaN (a dead level) never resamples
+        for level in np.flatnonzero(s1 * s1 < frac * self._level_slots * s2):
             self.resample(int(level))
 
     def resample(self, level: int | None = None) -> None:
@@ -279,15 +268,13 @@ class BernoulliFilter:
         step = self.n_levels
         for lev in range(step) if level is None else (level,):
             sl = slice(lev, None, step)
-            lw = self.log_w[sl]
-            norm, log_mass = normalise_log_weights(lw)
-            m = lw.shape[0]
-            idx = systematic_resample(norm, m, self.rng)
-            self.states[sl] = roughen(self.states[sl][idx], self.config.roughening_k, self.rng)
-            self.modes[sl] = self.modes[sl][idx]
-            if self.radio_belief is not None:
-                self.radio_belief.permute(sl, idx)
-            self.log_w[sl] = (log_mass if np.isfinite(log_mass) else -math.log(step)) - math.log(m)
+            belief = self.radio_belief
+            mean, cov = (_NO_ROWS2, _NO_ROWS3) if belief is None else (belief.mean[sl],
+                                                                       belief.cov[sl])
+            log_mass = resample_roughen(self.log_w[sl], self.states[sl], self.modes[sl], mean,
+                                        cov, self.config.roughening_k, self.rng)
+            mass = log_mass if math.isfinite(log_mass) else -math.log(step)
+            self.log_w[sl] = mass - math.log(self.log_w[sl].shape[0])
         self.log_w, _ = normalise_log_weights(self.log_w)
         self.n_resamples += 1
 
@@ -354,42 +341,12 @@ class BernoulliFilter:
         return self.states[idx], self.modes[idx], offset, exponent
 
 
-def bernoulli_log_likelihood(
-    radio: RadioModel, unknowns: RadioUncertainty, pred: Predicted, z_db: FloatArray,
-    noise_var: FloatArray | float | None = None, *, prewhitened: Predicted | None = None,
-    extra_var: FloatArray | float = 0.0,
-) -> tuple[FloatArray, FloatArray]:
-    """log L(x) (N,) for each particle and the probability (N, m) that each z is that
-    particle's inlier detection (the weight of its Kalman step).
-
-    L = 1 - pD + pD * sum_z g(z|x) / kappa, finite everywhere. ``pred``: each particle's
-    predicted power (pD from it, widened by ``extra_var``); the density of z uses
-    ``prewhitened`` (z then being the prewhitened measurements) if given, else ``pred``, with
-    noise variance ``noise_var`` (default the radio's).
-    """
-    log_pd, log_miss = log_detection_probability(radio, pred, extra_var)
-    if z_db.size == 0:
-        return log_miss, np.empty((log_miss.shape[0], 0))
-    log_kappa = math.log(max(radio.clutter_density, _MIN_KAPPA))
-    r = radio.noise_var if noise_var is None else noise_var
-    log_g, inlier = log_detected_density(radio, unknowns, prewhitened or pred, z_db, r)
-    terms = log_pd[:, None] + log_g - log_kappa
-    log_l = np.logaddexp(log_miss, logsumexp(terms, axis=1))
-    return log_l, np.exp(terms - log_l[:, None]) * inlier
-
-
-def bernoulli_update(
-    log_w: FloatArray, existence: float, log_l: FloatArray
-) -> tuple[FloatArray, float]:
-    """Posterior (normalised log-weights (N,), existence) from the per-particle log L (N,)."""
-    new_log_w, log_mean_l = normalise_log_weights(log_w + log_l)
-    if not np.isfinite(log_mean_l):  # every particle impossible: keep the prior shape
-        return log_w.copy(), existence
+def posterior_existence(existence: float, log_mean_l: float) -> float:
+    """q' = q <L> / (1 - q + q <L>) from the log of the weighted mean likelihood <L>, on the
+    log scale (``log_mean_l`` finite)."""
     if existence <= 0.0:
-        return new_log_w, 0.0
+        return 0.0
     if existence >= 1.0:
-        return new_log_w, 1.0
-    # q' = q <L> / (1 - q + q <L>), on the log scale
+        return 1.0
     log_q_l = math.log(existence) + log_mean_l
-    q_new = math.exp(log_q_l - np.logaddexp(math.log1p(-existence), log_q_l))
-    return new_log_w, float(q_new)
+    return math.exp(log_q_l - float(np.logaddexp(math.log1p(-existence), log_q_l)))

@@ -8,7 +8,10 @@ counter-clockwise (a left turn seen from above).
 Every model has one verb, ``propagate(state, mode, dt_s, rng) -> (state, mode)``, used both to
 sample truth trajectories (simulation) and to predict particles (filter); it never mutates its
 inputs. ``initial(n, xy, rng)`` draws velocities and modes for new particles or truth objects.
-All operations are vectorised over the leading axes; cost O(number of states).
+All operations are vectorised over the leading axes; cost O(number of states). Each
+``propagate`` is one compiled pass over the states (:mod:`core.jit`) that draws its noise from
+the caller's generator in the order numpy would (per state: mode switch uniforms for all
+states first, then the two accelerations of each state in turn).
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import fractional_matrix_power
 
+from mexgen_gcs.core.jit import inline, kernel
+
 FloatArray = NDArray[np.float64]
 ModeArray = NDArray[np.int8]
 
@@ -31,6 +36,7 @@ MotionName = Literal["static", "rw", "cv", "ctra", "cv-ift", "cv-mismatch"]
 _DEFAULT_TURN_RATE_RAD_S = 0.2181661564992912  # 12.5 deg/s, mid of the paper's 10-15
 
 PAPER_TRANSITION = ((0.975, 0.0125, 0.0125), (0.225, 0.775, 0.0), (0.225, 0.0, 0.775))
+_NO_TURN = np.zeros(1)
 
 
 class MotionModel(Protocol):
@@ -86,13 +92,10 @@ class RandomWalk:
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        out = state.copy()
-        out[..., 2:] = 0.0
-        if self.std_m_per_sqrt_s > 0.0:
-            out[..., :2] += rng.normal(
-                0.0, self.std_m_per_sqrt_s * math.sqrt(dt_s), size=out[..., :2].shape
-            )
-        return out, mode
+        flat = _rows(state)
+        out = _random_walk_step(flat, self.std_m_per_sqrt_s * math.sqrt(dt_s),
+                                self.std_m_per_sqrt_s > 0.0, rng)
+        return out.reshape(state.shape), mode
 
     def initial(
         self, xy: FloatArray, rng: np.random.Generator
@@ -102,38 +105,118 @@ class RandomWalk:
         return state, np.zeros(xy.shape[0], np.int8)
 
 
-def _turn_step(
-    state: FloatArray, omega: FloatArray | float, dt_s: float
-) -> FloatArray:
-    """Exact constant-turn step: velocity rotated by omega*dt, position integrated along the arc.
+def _rows(state: FloatArray) -> FloatArray:
+    """States (..., 4) as contiguous rows (n, 4) for a kernel."""
+    return np.ascontiguousarray(state, dtype=np.float64).reshape(-1, 4)
 
-    omega (rad/s, CCW positive) broadcasts against state[..., 0]; omega = 0 is CV.
-    """
-    omega = np.asarray(omega, dtype=np.float64)
+
+@inline
+def _turn_coefficients(omega: float, dt_s: float) -> tuple[float, float, float, float]:
+    """(a, b, c, s) of the exact constant-turn step over dt_s at turn rate omega (rad/s, CCW
+    positive; 0 is CV): ``a`` = integral of cos(w t) dt, ``b`` = integral of sin(w t) dt,
+    ``c``, ``s`` = cos, sin of omega dt."""
     wt = omega * dt_s
-    s, c = np.sin(wt), np.cos(wt)
-    small = np.abs(omega) < 1e-9
-    safe = np.where(small, 1.0, omega)
-    a = np.where(small, dt_s, s / safe)  # integral of cos(w t) dt
-    b = np.where(small, 0.5 * omega * dt_s * dt_s, (1.0 - c) / safe)  # integral of sin(w t) dt
-    vx, vy = state[..., 2], state[..., 3]
-    out = np.empty(np.broadcast_shapes(state.shape, (*np.shape(omega), 4)))
-    out[..., 0] = state[..., 0] + a * vx - b * vy
-    out[..., 1] = state[..., 1] + b * vx + a * vy
-    out[..., 2] = c * vx - s * vy
-    out[..., 3] = s * vx + c * vy
+    s, c = math.sin(wt), math.cos(wt)
+    if abs(omega) < 1e-9:
+        return dt_s, 0.5 * omega * dt_s * dt_s, c, s
+    return s / omega, (1.0 - c) / omega, c, s
+
+
+@inline
+def _turn_and_accelerate(state: FloatArray, out: FloatArray, i: int, a: float, b: float,
+                         c: float, s: float, accel_std: float, dt_s: float,
+                         rng: np.random.Generator) -> None:
+    """Row i of out: the exact constant-turn step of row i of state (velocity rotated by
+    omega dt, position integrated along the arc), plus discrete white-noise acceleration,
+    piecewise constant over dt, N(0, accel_std^2) per axis (drawn east, then north)."""
+    vx, vy = state[i, 2], state[i, 3]
+    out[i, 0] = state[i, 0] + a * vx - b * vy
+    out[i, 1] = state[i, 1] + b * vx + a * vy
+    out[i, 2] = c * vx - s * vy
+    out[i, 3] = s * vx + c * vy
+    if accel_std > 0.0:
+        for k in range(2):
+            acc = accel_std * rng.standard_normal()
+            out[i, k] += 0.5 * dt_s * dt_s * acc
+            out[i, 2 + k] += dt_s * acc
+
+
+@kernel
+def _random_walk_step(state: FloatArray, std: float, draw: bool, rng: np.random.Generator
+                      ) -> FloatArray:
+    """Rows (n, 4): position + N(0, std^2) per axis (if ``draw``), velocity zero."""
+    out = np.empty_like(state)
+    for i in range(state.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3] = state[i, 0], state[i, 1], 0.0, 0.0
+        if draw:
+            out[i, 0] += std * rng.standard_normal()
+            out[i, 1] += std * rng.standard_normal()
     return out
 
 
-def _add_accel_noise(
-    state: FloatArray, accel_std: float, dt_s: float, rng: np.random.Generator
-) -> None:
-    """Discrete white-noise acceleration, piecewise constant over dt, in place, per axis."""
-    if accel_std <= 0.0:
-        return
-    acc = rng.normal(0.0, accel_std, size=state[..., :2].shape)
-    state[..., :2] += 0.5 * dt_s * dt_s * acc
-    state[..., 2:] += dt_s * acc
+@kernel
+def _turn_step(state: FloatArray, omega: FloatArray, accel_std: float, dt_s: float,
+               rng: np.random.Generator) -> FloatArray:
+    """Rows (n, 4) propagated by constant turn rate ``omega`` (1,) for every row, or (n,)
+    one per row, plus the acceleration noise."""
+    n = state.shape[0]
+    out = np.empty_like(state)
+    a, b, c, s = _turn_coefficients(omega[0], dt_s)
+    for i in range(n):
+        if omega.shape[0] > 1:
+            a, b, c, s = _turn_coefficients(omega[i], dt_s)
+        _turn_and_accelerate(state, out, i, a, b, c, s, accel_std, dt_s, rng)
+    return out
+
+
+@inline
+def _next_mode(u: float, cum_row: FloatArray) -> int:
+    """The mode a uniform u selects from one row of cumulative transition probabilities."""
+    k = 0
+    for j in range(cum_row.shape[0] - 1):  # u < cum[-1] = 1 always
+        if u >= cum_row[j]:
+            k += 1
+    return k
+
+
+@kernel
+def _switch_modes(mode: ModeArray, cum: FloatArray, rng: np.random.Generator) -> ModeArray:
+    """Markov mode switches (n,) with cumulative transition rows ``cum`` (K, K)."""
+    out = np.empty_like(mode)
+    for i in range(mode.shape[0]):
+        out[i] = _next_mode(rng.random(), cum[mode[i]])
+    return out
+
+
+@kernel
+def _imm_step(state: FloatArray, mode: ModeArray, cum: FloatArray, signs: FloatArray,
+              rate: FloatArray, accel_std: float, dt_s: float, rng: np.random.Generator
+              ) -> tuple[FloatArray, ModeArray]:
+    """Rows (n, 4) and modes (n,) of the IMM: switch modes (cumulative rows ``cum`` (K, K)),
+    then the constant-turn step at ``signs[mode] * rate`` (rate (1,) or (n,)), plus noise."""
+    n = state.shape[0]
+    new_mode = _switch_modes(mode, cum, rng)
+    out = np.empty_like(state)
+    k_modes = signs.shape[0]
+    table = np.empty((k_modes, 4))  # coefficients per mode for a shared turn rate
+    for k in range(k_modes):
+        table[k, 0], table[k, 1], table[k, 2], table[k, 3] = _turn_coefficients(
+            signs[k] * rate[0], dt_s)
+    for i in range(n):
+        m = new_mode[i]
+        if rate.shape[0] > 1:
+            a, b, c, s = _turn_coefficients(signs[m] * rate[i], dt_s)
+        else:
+            a, b, c, s = table[m, 0], table[m, 1], table[m, 2], table[m, 3]
+        _turn_and_accelerate(state, out, i, a, b, c, s, accel_std, dt_s, rng)
+    return out, new_mode
+
+
+def _per_row(value: float | FloatArray, lead: tuple[int, ...]) -> FloatArray:
+    """A scalar as (1,), or an array broadcast to the states' leading shape, flattened."""
+    if np.ndim(value) == 0:
+        return np.array([float(value)])
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, np.float64), lead)).reshape(-1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,10 +231,8 @@ class ConstantVelocity:
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        out = state.copy()
-        out[..., :2] += dt_s * state[..., 2:]
-        _add_accel_noise(out, self.accel_std_m_s2, dt_s, rng)
-        return out, mode
+        out = _turn_step(_rows(state), _NO_TURN, self.accel_std_m_s2, dt_s, rng)
+        return out.reshape(state.shape), mode
 
     def initial(
         self, xy: FloatArray, rng: np.random.Generator
@@ -174,9 +255,11 @@ class ConstantTurnRate:
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        out = _turn_step(state, self.turn_rate_rad_s, dt_s)
-        _add_accel_noise(out, self.accel_std_m_s2, dt_s, rng)
-        return out, mode
+        lead = np.broadcast_shapes(state.shape[:-1], np.shape(self.turn_rate_rad_s))
+        flat = _rows(np.broadcast_to(state, (*lead, 4)))
+        out = _turn_step(flat, _per_row(self.turn_rate_rad_s, lead), self.accel_std_m_s2, dt_s,
+                         rng)
+        return out.reshape((*lead, 4)), mode
 
     def initial(
         self, xy: FloatArray, rng: np.random.Generator
@@ -195,19 +278,6 @@ def _transition_for(matrix: tuple[tuple[float, ...], ...], steps: float) -> Floa
     cum = np.cumsum(p, axis=1)
     cum[:, -1] = 1.0
     return cum
-
-
-@lru_cache(maxsize=64)
-def _turn_tables(turn_rate_rad_s: float, dt_s: float) -> tuple[FloatArray, ...]:
-    """(a, b, c, s) of the exact constant-turn step for modes {CV, +w, -w}, (3,) each."""
-    omega = np.array([0.0, turn_rate_rad_s, -turn_rate_rad_s])
-    wt = omega * dt_s
-    s, c = np.sin(wt), np.cos(wt)
-    small = np.abs(omega) < 1e-9
-    safe = np.where(small, 1.0, omega)
-    a = np.where(small, dt_s, s / safe)
-    b = np.where(small, 0.5 * omega * dt_s * dt_s, (1.0 - c) / safe)
-    return a, b, c, s
 
 
 @dataclass(frozen=True, slots=True)
@@ -241,28 +311,21 @@ class CvIft:
     def switch(self, mode: ModeArray, dt_s: float, rng: np.random.Generator) -> ModeArray:
         """Markov mode switches over dt_s, vectorised with one uniform draw per state."""
         cum = _transition_for(self.transition, dt_s / self.switch_period_s)
-        u = rng.random(mode.shape)
-        rows = cum[mode, :-1]  # (..., K - 1); u < cum[:, -1] = 1 always
-        return (u[..., None] >= rows).sum(axis=-1, dtype=np.int8)
+        flat = np.ascontiguousarray(mode, dtype=np.int8).reshape(-1)
+        return _switch_modes(flat, cum, rng).reshape(np.shape(mode))
 
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
     ) -> tuple[FloatArray, ModeArray]:
-        new_mode = self.switch(mode, dt_s, rng)
-        if np.ndim(self.turn_rate_rad_s) == 0:
-            # one turn rate: the step's coefficients per mode, (K,) each, gathered by mode
-            a, b, c, s = (t[new_mode] for t in _turn_tables(float(self.turn_rate_rad_s), dt_s))
-            vx, vy = state[..., 2], state[..., 3]
-            out = np.empty(state.shape)
-            out[..., 0] = state[..., 0] + a * vx - b * vy
-            out[..., 1] = state[..., 1] + b * vx + a * vy
-            out[..., 2] = c * vx - s * vy
-            out[..., 3] = s * vx + c * vy
-        else:
-            omega = self._signs[new_mode] * self.turn_rate_rad_s
-            out = _turn_step(state, omega, dt_s)
-        _add_accel_noise(out, self.accel_std_m_s2, dt_s, rng)
-        return out, new_mode
+        lead = np.broadcast_shapes(state.shape[:-1], np.shape(mode),
+                                   np.shape(self.turn_rate_rad_s))
+        flat = _rows(np.broadcast_to(state, (*lead, 4)))
+        modes = np.ascontiguousarray(np.broadcast_to(mode, lead), dtype=np.int8).reshape(-1)
+        cum = _transition_for(self.transition, dt_s / self.switch_period_s)
+        out, new_mode = _imm_step(flat, modes, cum, self._signs,
+                                  _per_row(self.turn_rate_rad_s, lead), self.accel_std_m_s2,
+                                  dt_s, rng)
+        return out.reshape((*lead, 4)), new_mode.reshape(lead)
 
     def initial(
         self, xy: FloatArray, rng: np.random.Generator

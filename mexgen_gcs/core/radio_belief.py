@@ -11,7 +11,9 @@ exponent ``n``::
 
 so each particle carries a Gaussian ``N(mu, Sigma)`` over theta and the filter stays a particle
 filter over position only: a Rao-Blackwellised particle filter (Doucet et al. 2000). Per
-particle and pulse this costs a 2-state Kalman step: O(N) vectorised arrays, no loops.
+particle and pulse this costs a 2-state Kalman step, in one compiled pass over the particles
+(:func:`core.filter_kernels.robust_update`); this module holds the beliefs, the shadowing
+memory and the neighbour conditioning shared by every particle.
 
 - Shadowing is a static Gaussian field over the receiver's position, ``cov = sigma_s^2
   exp(-|u - u'| / L)`` (Gudmundson's model), so a pulse heard near earlier ones repeats their
@@ -54,14 +56,13 @@ from dataclasses import field as dataclass_field
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import log_ndtr
 
+from mexgen_gcs.core.jit import kernel
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.errors import EstimationError
 
 FloatArray = NDArray[np.float64]
 
-_LOG_2PI = math.log(2.0 * math.pi)
 BB, BN, NN = range(3)
 
 
@@ -145,37 +146,12 @@ class RadioBelief:
         cov[:, NN] = unc.path_loss_exponent_std**2
         return cls(mean, cov, level)
 
-    def permute(self, rows: slice, idx: NDArray[np.intp]) -> None:
-        """Rows ``rows`` become their own rows ``idx`` (resampling within a level)."""
-        self.mean[rows] = self.mean[rows][idx]
-        self.cov[rows] = self.cov[rows][idx]
-
     def rebirth(self, rows: NDArray[np.bool_], radio: RadioModel, unc: RadioUncertainty,
                 tag: TagRadioPrior | None) -> None:
         """Rows ``rows`` (N,) return to the prior of their own level (births)."""
         prior = RadioBelief.prior(self.level.shape[0], radio, unc, tag)
         self.mean[rows] = prior.mean[rows]
         self.cov[rows] = prior.cov[rows]
-
-
-@dataclass(frozen=True, slots=True)
-class Predicted:
-    """A particle set's predicted power for one receiver pose (all (N,))."""
-
-    mean_db: FloatArray
-    """m = P0 + g + H mu."""
-    var_db2: FloatArray
-    """v = H Sigma H' (zero for the classic model)."""
-    log_term: FloatArray
-    """l = -10 log10(d / d0), the exponent's regressor."""
-    sigma_h: FloatArray | None
-    """Sigma H' (N, 2), None for the classic model."""
-
-    @classmethod
-    def known(cls, power_db: FloatArray) -> Predicted:
-        """Powers of a model with nothing unknown (the classic filter)."""
-        p = np.asarray(power_db, dtype=np.float64)
-        return cls(p, np.zeros_like(p), np.zeros_like(p), None)
 
 
 SHADOW_NEIGHBOURS = 6
@@ -249,122 +225,57 @@ class ShadowMemory:
 
 
 def shadow_conditioning(memory: ShadowMemory, idx: NDArray[np.intp], d_new: FloatArray,
-                        shadow_var: float, noise_var: float, distance_m: float
-                        ) -> tuple[FloatArray, float]:
-    """(beta (m,), r^2) of a new detection given the mean powers of cells ``idx`` at
-    distances d_new (a cell of n pulses has noise R / n)."""
-    if idx.size == 0 or shadow_var <= 0.0:
-        return np.zeros(idx.size), shadow_var + noise_var
-    p = memory.poses[idx, :2]
-    dd = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
-    cmat = shadow_var * np.exp(-dd / distance_m)
-    cmat[np.diag_indices(idx.size)] += noise_var / memory.n[idx]
-    c = shadow_var * np.exp(-d_new / distance_m)
-    beta: FloatArray = np.linalg.solve(cmat, c).astype(np.float64, copy=False)
-    return beta, max(shadow_var + noise_var - float(c @ beta), 1e-9)
+                        shadow_var: FloatArray, noise_var: FloatArray, distance_m: float
+                        ) -> tuple[FloatArray, FloatArray]:
+    """(beta (L, m), r^2 (L,)) of a new detection given the mean powers of cells ``idx``
+    (m,) at distances d_new (m,) from it, for L hypotheses of the shadowing and noise
+    variances ``shadow_var``, ``noise_var`` (L,) each (a cell of n pulses has noise R / n)."""
+    return _condition(np.ascontiguousarray(memory.poses[idx, :2]),
+                      np.ascontiguousarray(memory.n[idx]), np.ascontiguousarray(d_new),
+                      np.ascontiguousarray(shadow_var, dtype=np.float64),
+                      np.ascontiguousarray(noise_var, dtype=np.float64), distance_m)
 
 
-def predict_power(radio: RadioModel, belief: RadioBelief | None, tag_xy: FloatArray,
-                  rx_xyz: FloatArray, rx_yaw_rad: float) -> Predicted:
-    """Predicted power of every particle (tag_xy (N, 2)) from one receiver pose."""
-    log_term, gain = radio.geometry(tag_xy, rx_xyz, rx_yaw_rad)
-    return _predicted(radio, belief, radio.p0_db + gain, log_term, np.ones_like(log_term))
-
-
-def predict_prewhitened(radio: RadioModel, belief: RadioBelief | None, tag_xy: FloatArray,
-                        rx_xyz: FloatArray, rx_yaw_rad: float, memory: ShadowMemory,
-                        idx: NDArray[np.intp], beta: FloatArray) -> tuple[Predicted, Predicted]:
-    """(marginal, prewhitened) predictions of every particle: ``m = P0 + g + H mu`` and
-    ``c~ + H~ mu`` (see the module), the latter the new pose's prediction minus ``beta``
-    (N, m) times the neighbours' (their poses ``memory[idx]``)."""
-    log_term, gain = radio.geometry(tag_xy, rx_xyz, rx_yaw_rad)
-    one = np.ones_like(log_term)
-    marginal = _predicted(radio, belief, radio.p0_db + gain, log_term, one)
-    if idx.size == 0:
-        return marginal, marginal
-    p = memory.poses[idx]
-    l_j, g_j = radio.geometry(tag_xy[:, None, :], p[None, :, :3], p[None, :, 3])
-    base = radio.p0_db * (1.0 - beta.sum(axis=1)) + gain - (g_j * beta).sum(axis=1)
-    whitened = _predicted(radio, belief, base, log_term - (l_j * beta).sum(axis=1),
-                          one - beta.sum(axis=1))
-    return marginal, whitened
-
-
-def _predicted(radio: RadioModel, belief: RadioBelief | None, base: FloatArray,
-               log_term: FloatArray, one: FloatArray) -> Predicted:
-    """m = base + [one, log_term] theta and its variance, H = [one, log_term]."""
-    if belief is None:
-        mean = base + radio.path_loss_exponent * log_term
-        return Predicted(mean, np.zeros_like(mean), log_term, None)
-    mu, c = belief.mean, belief.cov
-    mean = base + one * mu[:, 0] + log_term * mu[:, 1]
-    sh = np.empty((log_term.shape[0], 2))  # Sigma H'
-    sh[:, 0] = c[:, BB] * one + c[:, BN] * log_term
-    sh[:, 1] = c[:, BN] * one + c[:, NN] * log_term
-    var = one * sh[:, 0] + log_term * sh[:, 1]
-    return Predicted(mean, np.maximum(var, 0.0), log_term, sh)
-
-
-_CERTAIN_X = 12.0
-"""Standard scores above which detection is certain in float64: log Phi(12) = -2e-33 and
-Phi(-12) = 2e-33, negligible beside the miss floor 1 - pd_max >= 1e-12."""
-
-
-def log_detection_probability(radio: RadioModel, pred: Predicted,
-                              extra_var: FloatArray | float = 0.0
-                              ) -> tuple[FloatArray, FloatArray]:
-    """(log pD, log(1 - pD)) per particle, marginalising the power uncertainty and the
-    instantaneous power's variance ``extra_var`` about its mean. Finite."""
-    spread = np.sqrt(radio.detection_spread_db**2 + pred.var_db2 + extra_var)
-    x = (pred.mean_db - radio.sensitivity_db) / spread
-    log_pd_max = math.log(max(radio.pd_max, 1e-300))
-    log_miss_floor = math.log1p(-min(radio.pd_max, 1.0 - 1e-12))
-    if x.size and float(x.min()) >= _CERTAIN_X:
-        # every particle far above the sensitivity (the paper preset's sensor): Phi(x) = 1 and
-        # pd_max Phi(-x) < 1e-32 next to 1 - pd_max >= 1e-12, exactly in float64
-        return (np.full_like(x, max(log_pd_max, -1e4)),
-                np.full_like(x, max(log_miss_floor, -1e4)))
-    log_pd = log_pd_max + log_ndtr(x)
-    # 1 - pd_max Phi(x) = (1 - pd_max) + pd_max Phi(-x)
-    with np.errstate(divide="ignore"):
-        log_miss = np.logaddexp(log_miss_floor, log_pd_max + log_ndtr(-x))
-    return np.maximum(log_pd, -1e4), np.maximum(log_miss, -1e4)
-
-
-def log_detected_density(radio: RadioModel, unc: RadioUncertainty, pred: Predicted,
-                         z_db: FloatArray, noise_var: FloatArray | float
-                         ) -> tuple[FloatArray, FloatArray]:
-    """log g(z | x) (N, m) of the robust mixture for measurements z (m,) or per particle
-    (N, m), given the noise variance R (N,) or scalar; and the inlier responsibility (N, m)."""
-    s = pred.var_db2 + noise_var  # (N,)
-    z = np.asarray(z_db)
-    e = (z if z.ndim == 2 else z[None, :]) - pred.mean_db[:, None]
-    log_in = -0.5 * (e * e / s[:, None] + np.log(s)[:, None] + _LOG_2PI)
-    eps = unc.outlier_prob
-    if eps <= 0.0:
-        return log_in, np.ones_like(log_in)
-    log_out = math.log(eps) - math.log(radio.clutter_max_db - radio.clutter_min_db)
-    log_in = log_in + math.log1p(-eps)
-    log_g = np.logaddexp(log_in, log_out)
-    return log_g, np.exp(log_in - log_g)
-
-
-def kalman_update(belief: RadioBelief, pred: Predicted, z_db: FloatArray | float,
-                  weight: FloatArray, noise_var: FloatArray | float) -> None:
-    """Weighted, moment-matched update of every particle's Gaussian with one power z_db
-    (scalar, or (N,) prewhitened per particle);
-    ``weight`` (N,) in [0, 1] is the probability that z is this particle's inlier."""
-    if pred.sigma_h is None:
-        return
-    s = pred.var_db2 + noise_var
-    e = z_db - pred.mean_db
-    w = np.clip(weight, 0.0, 1.0)
-    belief.mean += (w * e / s)[:, None] * pred.sigma_h
-    f = w / s - w * (1.0 - w) * e * e / (s * s)
-    sh = pred.sigma_h
-    c = belief.cov
-    c[:, BB] -= f * sh[:, 0] * sh[:, 0]
-    c[:, BN] -= f * sh[:, 0] * sh[:, 1]
-    c[:, NN] -= f * sh[:, 1] * sh[:, 1]
-    for d in (BB, NN):  # rounding must never make a variance negative
-        np.maximum(c[:, d], 0.0, out=c[:, d])
+@kernel
+def _condition(cells_xy: FloatArray, n_pulses: FloatArray, d_new: FloatArray,
+               shadow_var: FloatArray, noise_var: FloatArray, distance_m: float
+               ) -> tuple[FloatArray, FloatArray]:
+    """beta = (C + R diag(1 / n))^-1 c and r^2 = s + R - c' beta per hypothesis (see the
+    module; C = s exp(-|u_i - u_j| / L), c = s exp(-d_new / L)), by Cholesky: C + R / n is
+    symmetric positive definite (an exponential covariance plus a positive diagonal)."""
+    m = cells_xy.shape[0]
+    n_levels = shadow_var.shape[0]
+    beta = np.zeros((n_levels, m))
+    r2 = shadow_var + noise_var
+    corr = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            dx = cells_xy[i, 0] - cells_xy[j, 0]
+            dy = cells_xy[i, 1] - cells_xy[j, 1]
+            corr[i, j] = math.exp(-math.sqrt(dx * dx + dy * dy) / distance_m)
+    chol = np.empty((m, m))
+    y = np.empty(m)
+    for lev in range(n_levels):
+        sv = shadow_var[lev]
+        if m == 0 or sv <= 0.0:
+            continue
+        for i in range(m):  # lower Cholesky factor of C + R / n
+            for j in range(i + 1):
+                acc = sv * corr[i, j] + (noise_var[lev] / n_pulses[i] if i == j else 0.0)
+                for k in range(j):
+                    acc -= chol[i, k] * chol[j, k]
+                chol[i, j] = math.sqrt(acc) if i == j else acc / chol[j, j]
+        for i in range(m):  # forward: chol y = c
+            acc = sv * math.exp(-d_new[i] / distance_m)
+            for k in range(i):
+                acc -= chol[i, k] * y[k]
+            y[i] = acc / chol[i, i]
+        quad = 0.0
+        for i in range(m - 1, -1, -1):  # back: chol' beta = y; c' beta = y' y
+            acc = y[i]
+            for k in range(i + 1, m):
+                acc -= chol[k, i] * beta[lev, k]
+            beta[lev, i] = acc / chol[i, i]
+            quad += y[i] * y[i]
+        r2[lev] = max(sv + noise_var[lev] - quad, 1e-9)
+    return beta, r2

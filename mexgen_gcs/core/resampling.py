@@ -1,15 +1,23 @@
 """Weights on the log scale, normalised in one place; resampling and roughening.
 
-Arrays in, arrays out; inputs are never mutated. Shapes in docstrings; N = particles.
+Arrays in, arrays out, inputs never mutated; except :func:`resample_roughen`, the filter's
+compiled resampling step, which works in place on the rows it is given. Shapes in
+docstrings; N = particles. States are ENU metres and m/s (core.motion); nothing here
+depends on their frame.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.jit import inline, kernel
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
+ModeArray = NDArray[np.int8]
 
 
 def logsumexp(x: FloatArray, axis: int = -1, keepdims: bool = False) -> FloatArray:
@@ -48,24 +56,84 @@ def effective_sample_size(log_w: FloatArray) -> float:
     return float(1.0 / np.exp(logsumexp(2.0 * log_w)))
 
 
+@inline
+def _systematic(cdf: FloatArray, n: int, u: float) -> IntArray:
+    """n systematic draws (u + i) / n from the normalised cumulative weights cdf (M,):
+    the first index whose cdf exceeds each position (searchsorted right), at most M - 1."""
+    m = cdf.shape[0]
+    idx = np.empty(n, np.intp)
+    j = 0
+    for i in range(n):
+        pos = (u + i) / n
+        while j < m - 1 and cdf[j] <= pos:
+            j += 1
+        idx[i] = j
+    return idx
+
+
+@inline
+def _cumulative_weights(log_w: FloatArray) -> tuple[FloatArray, float]:
+    """(normalised cumulative weights (M,), log of the total weight) of log-weights (M,);
+    uniform, with log total -inf, if every weight is -inf."""
+    m = log_w.shape[0]
+    hi = -np.inf
+    for i in range(m):
+        hi = max(hi, log_w[i])
+    cdf = np.empty(m)
+    acc = 0.0
+    for i in range(m):
+        acc += math.exp(log_w[i] - hi) if hi > -np.inf else 1.0
+        cdf[i] = acc
+    for i in range(m):
+        cdf[i] /= acc
+    return cdf, hi + math.log(acc) if hi > -np.inf else -np.inf
+
+
+@kernel
+def _systematic_indices(log_w: FloatArray, n: int, u: float) -> IntArray:
+    cdf, _ = _cumulative_weights(log_w)
+    return _systematic(cdf, n, u)
+
+
 def systematic_resample(log_w: FloatArray, n: int, rng: np.random.Generator) -> IntArray:
     """Systematic resampling: n indices drawn in proportion to exp(log_w) (N,). O(N + n)."""
-    w = np.exp(log_w - log_w.max())
-    cdf = np.cumsum(w)
-    cdf /= cdf[-1]
-    positions = (rng.random() + np.arange(n)) / n
-    return np.minimum(np.searchsorted(cdf, positions, side="right"), len(w) - 1)
+    return _systematic_indices(np.ascontiguousarray(log_w, dtype=np.float64), n, rng.random())
 
 
-def roughen(
-    states: FloatArray, k: float, rng: np.random.Generator
-) -> FloatArray:
-    """Regularisation after resampling (Gordon et al. 1993): Gaussian jitter per dimension
-    with std k * range_d * N^(-1/D). (N, D) -> new (N, D); dimensions with zero spread stay.
-    """
-    n, d = states.shape
-    if k <= 0.0 or n < 2:
-        return states.copy()
-    spread = states.max(axis=0) - states.min(axis=0)
-    sigma = k * spread * n ** (-1.0 / d)
-    return states + rng.normal(size=states.shape) * sigma
+@kernel
+def resample_roughen(log_w: FloatArray, states: FloatArray, modes: ModeArray,
+                     belief_mean: FloatArray, belief_cov: FloatArray, k: float,
+                     rng: np.random.Generator) -> float:
+    """Systematic resampling of M particles in place (rows of ``states`` (M, D), ``modes``
+    (M,) and, unless they have no rows, ``belief_mean`` (M, 2) and ``belief_cov`` (M, 3)),
+    then roughening of the states (Gordon et al. 1993): Gaussian jitter per dimension with
+    std k * range_d * M^(-1/D), where the resampled states spread; dimensions with no spread
+    stay. Draws: one uniform, then the (M, D) jitter row by row. Returns the log of the total
+    weight of log_w (M,) (-inf if every weight is -inf: then resampled uniformly)."""
+    m, d = states.shape
+    cdf, log_mass = _cumulative_weights(log_w)
+    idx = _systematic(cdf, m, rng.random())
+    old_states = states.copy()
+    old_modes = modes.copy()
+    old_mean = belief_mean.copy()
+    old_cov = belief_cov.copy()
+    for i in range(m):
+        states[i, :] = old_states[idx[i], :]
+        modes[i] = old_modes[idx[i]]
+        if belief_mean.shape[0]:
+            belief_mean[i, :] = old_mean[idx[i], :]
+            belief_cov[i, :] = old_cov[idx[i], :]
+    if k <= 0.0 or m < 2:
+        return log_mass
+    sigma = np.empty(d)
+    for c in range(d):
+        lo = states[0, c]
+        hi = states[0, c]
+        for i in range(m):
+            lo = min(lo, states[i, c])
+            hi = max(hi, states[i, c])
+        sigma[c] = k * (hi - lo) * m ** (-1.0 / d)
+    for i in range(m):
+        for c in range(d):
+            states[i, c] += rng.standard_normal() * sigma[c]
+    return log_mass

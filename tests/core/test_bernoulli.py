@@ -6,15 +6,10 @@ import numpy as np
 import pytest
 
 from mexgen_gcs.core.area import SearchArea
-from mexgen_gcs.core.bernoulli import (
-    BernoulliFilter,
-    FilterConfig,
-    bernoulli_log_likelihood,
-    bernoulli_update,
-)
+from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, posterior_existence
+from mexgen_gcs.core.filter_kernels import classic_update, radio_params
 from mexgen_gcs.core.motion import make_motion_model
 from mexgen_gcs.core.radio import RadioModel
-from mexgen_gcs.core.radio_belief import Predicted, RadioUncertainty
 from mexgen_gcs.errors import EstimationError
 
 AREA = SearchArea.rectangle(-500, 500, -500, 500)
@@ -67,26 +62,38 @@ def test_existence_falls_when_tag_is_silent():
     assert q_before > 0.99 and q_after < 0.01
 
 
+def _two_particles(radio, z):
+    """The classic update of two equally weighted particles 100 m and 300 m east of a
+    receiver at 50 m heading north: (their powers, new log-weights, log mean likelihood)."""
+    states = np.array([[100.0, 0.0, 0.0, 0.0], [300.0, 0.0, 0.0, 0.0]])
+    rx, yaw = np.array([0.0, 0.0, 50.0]), 0.0
+    log_w = np.log([0.5, 0.5])
+    log_mean_l, ess = classic_update(states, rx, yaw, np.asarray(z, float), log_w,
+                                     radio_params(radio))
+    power = radio.power_db(states[:, :2], rx, yaw)
+    w = np.exp(log_w)
+    assert ess == pytest.approx(1.0 / (w @ w))
+    return power, log_w, log_mean_l
+
+
 def test_update_matches_hand_computed_two_particles():
     radio = RadioModel(clutter_rate=0.01)
-    power = np.array([-40.0, -50.0])
-    z = np.array([-41.0])
-    log_l, _ = bernoulli_log_likelihood(radio, RadioUncertainty(), Predicted.known(power), z)
+    power, log_w, log_mean_l = _two_particles(radio, [-41.0])
     pd = radio.detection_probability(power)
     g = np.exp(radio.log_likelihood(-41.0, power))
     expected = 1 - pd + pd * g / radio.clutter_density
-    np.testing.assert_allclose(np.exp(log_l), expected, rtol=1e-10)
-    log_w, q = bernoulli_update(np.log([0.5, 0.5]), 0.5, log_l)
     mean_l = expected.mean()
+    assert log_mean_l == pytest.approx(math.log(mean_l), rel=1e-12)
+    np.testing.assert_allclose(np.exp(log_w), expected / expected.sum(), rtol=1e-12)
+    q = posterior_existence(0.5, log_mean_l)
     assert q == pytest.approx(0.5 * mean_l / (0.5 + 0.5 * mean_l))
-    np.testing.assert_allclose(np.exp(log_w), expected / expected.sum())
 
 
 def test_missed_detection_likelihood_is_one_minus_pd():
-    power = np.array([-30.0, -90.0])
-    log_l, _ = bernoulli_log_likelihood(RADIO, RadioUncertainty(), Predicted.known(power),
-                                        np.empty(0))
-    np.testing.assert_allclose(np.exp(log_l), 1 - RADIO.detection_probability(power))
+    power, log_w, log_mean_l = _two_particles(RADIO, [])
+    miss = 1 - RADIO.detection_probability(power)
+    np.testing.assert_allclose(np.exp(log_w), miss / miss.sum(), rtol=1e-12)
+    assert log_mean_l == pytest.approx(math.log(miss.mean()), rel=1e-12)
 
 
 def test_no_nan_when_every_weight_underflows():
@@ -180,3 +187,27 @@ def test_same_seed_same_estimate():
     for f in (a, b):
         _fly_circle(f, np.array([0.0, 200.0]), np.random.default_rng(8), steps=50)
     np.testing.assert_array_equal(a.estimate().mean, b.estimate().mean)
+
+
+@pytest.mark.parametrize("motion", ["cv", "cv-ift"])
+def test_same_seed_same_result_robust_and_imm(motion):
+    """Every draw (births, motion, mode switches, resampling) comes from the filter's own
+    generator: the same seed gives bit-identical particles, weights and radio beliefs."""
+    from mexgen_gcs.config.schema import RadioSection
+
+    def run():
+        f = BernoulliFilter(make_motion_model(motion), RADIO, AREA,
+                            FilterConfig(n_particles=500,
+                                         radio_unknowns=RadioSection().uncertainty()),
+                            np.random.default_rng(4))
+        _fly_circle(f, np.array([50.0, -100.0]), np.random.default_rng(5), steps=80)
+        return f
+
+    a, b = run(), run()
+    assert a.n_resamples > 0
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.modes, b.modes)
+    np.testing.assert_array_equal(a.log_w, b.log_w)
+    np.testing.assert_array_equal(a.radio_belief.mean, b.radio_belief.mean)
+    np.testing.assert_array_equal(a.radio_belief.cov, b.radio_belief.cov)
+    assert a.existence == b.existence

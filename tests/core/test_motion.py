@@ -10,6 +10,7 @@ from mexgen_gcs.core.motion import (
     ConstantVelocity,
     CvIft,
     RandomWalk,
+    _transition_for,
     make_motion_model,
     simulate,
 )
@@ -132,3 +133,55 @@ def test_same_seed_same_trajectory_and_inputs_untouched():
 def test_unknown_model_name():
     with pytest.raises(ValueError, match="unknown motion model"):
         make_motion_model("teleport")  # type: ignore[arg-type]
+
+
+def _reference_propagate(model, state, mode, dt, rng):
+    """The models' equations in numpy, drawing as numpy would (mode uniforms, then (n, 2)
+    accelerations)."""
+    if isinstance(model, RandomWalk):
+        out = state.copy()
+        out[..., 2:] = 0.0
+        out[..., :2] += rng.normal(0.0, model.std_m_per_sqrt_s * math.sqrt(dt),
+                                   size=out[..., :2].shape)
+        return out, mode
+    if isinstance(model, CvIft):
+        cum = _transition_for(model.transition, dt / model.switch_period_s)  # matrix power
+        u = rng.random(mode.shape)
+        mode = (u[..., None] >= cum[mode, :-1]).sum(axis=-1).astype(np.int8)
+        omega = np.array([0.0, 1.0, -1.0])[mode] * model.turn_rate_rad_s
+    elif isinstance(model, ConstantTurnRate):
+        omega = np.broadcast_to(model.turn_rate_rad_s, state.shape[:-1])
+    else:
+        omega = np.zeros(state.shape[:-1])
+    small = np.abs(omega) < 1e-9
+    safe = np.where(small, 1.0, omega)
+    s, c = np.sin(omega * dt), np.cos(omega * dt)
+    a = np.where(small, dt, s / safe)
+    b = np.where(small, 0.0, (1.0 - c) / safe)
+    vx, vy = state[..., 2], state[..., 3]
+    out = np.stack([state[..., 0] + a * vx - b * vy, state[..., 1] + b * vx + a * vy,
+                    c * vx - s * vy, s * vx + c * vy], axis=-1)
+    acc = rng.normal(0.0, model.accel_std_m_s2, size=out[..., :2].shape)
+    out[..., :2] += 0.5 * dt * dt * acc
+    out[..., 2:] += dt * acc
+    return out, mode
+
+
+@pytest.mark.parametrize("name", ["rw", "cv", "ctra", "cv-ift", "ctra-rates", "cv-ift-rates"])
+def test_compiled_propagate_is_the_numpy_equations_with_the_same_draws(name):
+    if name.endswith("-rates"):
+        base = make_motion_model(name.removesuffix("-rates"))
+        rates = np.radians(np.linspace(-15.0, 15.0, 300))
+        model = (ConstantTurnRate(turn_rate_rad_s=rates) if base.n_modes == 1
+                 else CvIft(turn_rate_rad_s=rates))
+    else:
+        model = make_motion_model(name)
+    rng = np.random.default_rng(4)
+    state, mode = make_motion_model("cv-ift").initial(rng.uniform(-100, 100, (300, 2)), rng)
+    ours, ref = (state, mode), (state, mode)
+    for _ in range(5):
+        ours = model.propagate(*ours, 0.7, r1 := np.random.default_rng(len(name)))
+        ref = _reference_propagate(model, *ref, 0.7, r2 := np.random.default_rng(len(name)))
+        assert r1.random() == r2.random()  # the same numbers drawn
+        np.testing.assert_allclose(ours[0], ref[0], rtol=1e-12, atol=1e-12)
+        np.testing.assert_array_equal(ours[1], ref[1])

@@ -76,9 +76,11 @@ def test_shadowing_heard_again_adds_little():
         mem.add(float(k), rx + np.array([k * 0.1, 0.0, 0.0]), 0.0, -50.0 + k % 3)
     assert mem.count == 1 and mem.n[0] == 30 and mem.z_db[0] == pytest.approx(-49.0)
     idx, d = mem.neighbours(40.0, rx[:2], 50.0)
-    beta, r2 = shadow_conditioning(mem, idx, d, 16.0, 6.25, 50.0)
-    assert beta.sum() == pytest.approx(16.0 / (16.0 + 6.25 / 30), abs=1e-6)
-    assert r2 == pytest.approx(6.25 + 16.0 * (6.25 / 30) / (16.0 + 6.25 / 30))
+    beta, r2 = shadow_conditioning(mem, idx, d, np.array([16.0, 0.0]), np.array([6.25, 4.0]),
+                                   50.0)
+    assert beta[0].sum() == pytest.approx(16.0 / (16.0 + 6.25 / 30), abs=1e-6)
+    assert r2[0] == pytest.approx(6.25 + 16.0 * (6.25 / 30) / (16.0 + 6.25 / 30))
+    assert np.all(beta[1] == 0.0) and r2[1] == 4.0  # no shadowing: nothing to condition on
     # another heading is another cell (the antenna pattern differs); far away: no neighbours
     mem.add(41.0, rx, math.pi, -55.0)
     assert mem.count == 2
@@ -133,23 +135,23 @@ def test_roughness_levels_keep_their_particles_and_share_the_weight():
     assert smooth > 0.9  # the data (no shadowing) favour the smooth level
 
 
-@pytest.mark.parametrize("pd_max", [1.0, 0.95, 0.999999])
-def test_detection_far_above_the_sensitivity_is_certain_as_the_full_formula(pd_max: float) -> None:
-    """The shortcut for particles all >= 12 spreads above the sensitivity gives what the full
-    probit formula gives (to float64 precision); one particle below it takes the full path."""
-    from scipy.special import log_ndtr
-
-    from mexgen_gcs.core.radio_belief import Predicted, log_detection_probability
-
-    radio = RadioModel(sensitivity_db=-120.0, detection_spread_db=2.0, pd_max=pd_max)
-    far = Predicted.known(np.array([-96.0, -80.0, -40.0]))  # x = 12, 20, 40
-    log_pd, log_miss = log_detection_probability(radio, far)
-    x = (far.mean_db + 120.0) / 2.0
-    lp = math.log(pd_max)
-    full_pd = lp + log_ndtr(x)
-    full_miss = np.logaddexp(math.log1p(-min(pd_max, 1.0 - 1e-12)), lp + log_ndtr(-x))
-    np.testing.assert_allclose(log_pd, full_pd, rtol=0, atol=1e-30)
-    np.testing.assert_array_equal(log_miss, full_miss)
-    near = Predicted.known(np.array([-96.0, -119.0]))  # x = 12 and 0.5: the full path
-    log_pd, _ = log_detection_probability(radio, near)
-    assert log_pd[1] == pytest.approx(lp + float(log_ndtr(0.5)))
+def test_shadow_conditioning_solves_the_gaussian_process_equations():
+    """beta = (C + R / n)^-1 c and r^2 = s + R - c' beta (Cholesky in the kernel) against
+    numpy's solve, for several cells of several pulses and several hypotheses."""
+    rng = np.random.default_rng(3)
+    mem = ShadowMemory()
+    for k in range(40):
+        mem.add(float(k), np.array([*rng.uniform(0, 120, 2), 40.0]), 0.0, -50.0)
+    idx, d = mem.neighbours(40.0, np.array([60.0, 60.0]), 50.0)
+    assert idx.size == 6 and mem.n[idx].max() >= 1
+    shadow, noise = np.array([16.0, 4.0, 0.0]), np.array([6.25, 15.25, 6.25])
+    beta, r2 = shadow_conditioning(mem, idx, d, shadow, noise, 50.0)
+    p = mem.poses[idx, :2]
+    dd = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+    for lev in range(2):
+        cmat = shadow[lev] * np.exp(-dd / 50.0) + np.diag(noise[lev] / mem.n[idx])
+        c = shadow[lev] * np.exp(-d / 50.0)
+        ref = np.linalg.solve(cmat, c)
+        np.testing.assert_allclose(beta[lev], ref, rtol=1e-9, atol=1e-12)
+        assert r2[lev] == pytest.approx(shadow[lev] + noise[lev] - c @ ref, rel=1e-12)
+    assert np.all(beta[2] == 0.0) and r2[2] == 6.25

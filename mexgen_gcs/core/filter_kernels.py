@@ -1,0 +1,288 @@
+"""Compiled kernels of the particle Bernoulli filter's update: power, likelihood, weights.
+
+Frame: local ENU metres about home (x east, y north, z up; tags on the ground at z = 0);
+powers in dB; headings are compass headings in radians (0 = north, clockwise), as in
+:mod:`core.radio`. Particle states are ``(N, 4)`` ``[x, y, vx, vy]``; log-weights ``(N,)``.
+
+The model's equations are written once, as scalar helpers inlined into the kernels (the
+equations themselves are documented in :mod:`core.radio`, :mod:`core.radio_belief` and
+:mod:`core.bernoulli`):
+
+- :func:`geometry`: the exponent's regressor ``l = -10 log10(max(d, d_min) / d0)`` and the
+  antenna gain ``g`` of :meth:`RadioModel.geometry`;
+- :func:`detection`: ``pD = pd_max Phi((m - s) / w)`` and ``1 - pD``, each to full relative
+  precision in its small tail (one ``erfc`` per particle);
+- :func:`inlier_density` and :func:`likelihood`: the outlier-mixture density of a detected
+  power and the Bernoulli likelihood ``L = 1 - pD + pD sum_z g(z) / kappa``.
+
+``L >= 1 - pd_max >= 1e-12`` always, so it is computed as a probability (no log-sum-exp) and
+only its log enters the log-weights; no particle's weight ever underflows to a NaN.
+
+The kernels loop over particles once per update with no per-step array temporaries: the
+classic filter's whole update (:func:`classic_update`) and the robust filter's
+(:func:`robust_update`: marginal and prewhitened predictions, likelihood, one weighted
+Kalman step per detection) each end by updating and normalising the log-weights in place.
+Cost O(N (1 + m) + N J) for m shadowing neighbours and J detections.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mexgen_gcs.core.jit import inline, kernel
+from mexgen_gcs.core.radio import RadioModel
+
+FloatArray = NDArray[np.float64]
+LevelArray = NDArray[np.int8]
+
+_SQRT1_2 = math.sqrt(0.5)
+_MINUS_10_OVER_LN10 = -10.0 / math.log(10.0)
+CERTAIN_X = 12.0
+"""Standard scores above which detection is certain in float64: log Phi(12) = -2e-33 and
+Phi(-12) = 2e-33, negligible beside the miss floor 1 - pd_max >= 1e-12."""
+_MIN_KAPPA = 1e-300
+
+
+class RadioParams(NamedTuple):
+    """The radio model and the estimator's outlier model as the kernels take them."""
+
+    p0_db: float
+    d0_m: float
+    path_loss_exponent: float
+    min_distance2_m2: float
+    front_back_db: float
+    sensitivity_db: float
+    detection_spread2_db2: float
+    pd_max: float
+    miss_floor: float
+    """1 - pd_max, kept >= 1e-12 (a pulse is never certainly detected)."""
+    inv_kappa: float
+    """1 / the clutter intensity per dB."""
+    inlier: float
+    """1 - eps, eps the outlier probability of a detected power."""
+    outlier_density: float
+    """eps / clutter range, per dB."""
+    noise_var: float
+
+
+def radio_params(radio: RadioModel, outlier_prob: float = 0.0) -> RadioParams:
+    """The kernels' view of ``radio`` with outlier probability ``outlier_prob`` (eps)."""
+    pd_max = min(radio.pd_max, 1.0 - 1e-12)
+    width = radio.clutter_max_db - radio.clutter_min_db
+    return RadioParams(
+        p0_db=radio.p0_db, d0_m=radio.d0_m, path_loss_exponent=radio.path_loss_exponent,
+        min_distance2_m2=radio.min_distance_m**2, front_back_db=radio.front_back_db,
+        sensitivity_db=radio.sensitivity_db,
+        detection_spread2_db2=radio.detection_spread_db**2, pd_max=radio.pd_max,
+        miss_floor=1.0 - pd_max, inv_kappa=1.0 / max(radio.clutter_density, _MIN_KAPPA),
+        inlier=1.0 - outlier_prob, outlier_density=outlier_prob / width,
+        noise_var=radio.noise_var,
+    )
+
+
+# -- scalar model equations (inlined) ---------------------------------------------------------
+
+@inline
+def geometry(px: float, py: float, rx: float, ry: float, rz: float, sin_yaw: float,
+             cos_yaw: float, p: RadioParams) -> tuple[float, float]:
+    """(l, g) of a tag at (px, py, 0) seen from (rx, ry, rz) with heading yaw: the exponent's
+    regressor ``-10 log10(max(d, d_min) / d0)`` and the antenna gain, dB."""
+    dx = px - rx
+    dy = py - ry
+    horiz2 = dx * dx + dy * dy
+    dist = math.sqrt(max(horiz2 + rz * rz, p.min_distance2_m2))
+    log_term = _MINUS_10_OVER_LN10 * math.log(dist / p.d0_m)  # log is faster than log10
+    if p.front_back_db > 0.0:
+        # cos(bearing - yaw) cos(elev) - cos(elev), finite when the tag is right below
+        gain = 0.5 * p.front_back_db * ((dx * sin_yaw + dy * cos_yaw) - math.sqrt(horiz2)) / dist
+    else:
+        gain = 0.0
+    return log_term, gain
+
+
+@inline
+def detection(mean_db: float, var_db2: float, p: RadioParams) -> tuple[float, float]:
+    """(pD, 1 - pD) of a predicted power N(mean_db, var_db2): pD = pd_max Phi(x) with
+    x = (mean - sensitivity) / sqrt(spread^2 + var), each to full relative precision in
+    both tails (one erfc). 1 - pD >= 1 - pd_max >= 1e-12: a pulse is never certain."""
+    x = (mean_db - p.sensitivity_db) / math.sqrt(p.detection_spread2_db2 + var_db2)
+    if x >= CERTAIN_X:
+        return p.pd_max, p.miss_floor
+    if x >= 0.0:
+        q = 0.5 * math.erfc(x * _SQRT1_2)  # Phi(-x)
+        # 1 - pd_max Phi(x) = (1 - pd_max) + pd_max Phi(-x): no cancellation
+        return p.pd_max * (1.0 - q), p.miss_floor + p.pd_max * q
+    pd = p.pd_max * 0.5 * math.erfc(-x * _SQRT1_2)
+    return pd, 1.0 - pd
+
+
+@inline
+def inlier_density(e_db: float, s_db2: float, p: RadioParams) -> float:
+    """(1 - eps) N(e; 0, s): the inlier part of the density of a detected power with
+    innovation ``e_db`` and innovation variance ``s_db2`` (0 beyond 37 sigma: no subnormals)."""
+    r = 0.5 * e_db * e_db / s_db2
+    if r > 700.0:
+        return 0.0
+    return p.inlier * math.exp(-r) / math.sqrt(2.0 * math.pi * s_db2)
+
+
+@inline
+def likelihood(pd: float, miss: float, g_in: FloatArray, share: FloatArray, p: RadioParams
+               ) -> float:
+    """L = 1 - pD + pD sum_z g(z) / kappa, g = g_in + eps U(clutter range), from the inlier
+    densities ``g_in`` (J,) of the detections; ``share`` (J,) receives each detection's
+    probability of being this particle's inlier, pD g_in(z) / (kappa L). L >= 1e-12."""
+    nz = g_in.shape[0]
+    total = miss
+    for j in range(nz):
+        g_in[j] *= pd * p.inv_kappa
+        total += g_in[j] + pd * p.outlier_density * p.inv_kappa
+    for j in range(nz):
+        share[j] = g_in[j] / total
+    return total
+
+
+@inline
+def _reweight_levels(log_w: FloatArray, lik: FloatArray, s1: FloatArray, s2: FloatArray
+                     ) -> float:
+    """Bayes' rule on normalised log-weights in place, ``log_w <- log_w + log lik - log
+    total`` (lik (N,) > 0 is overwritten), unless the total is not finite (then log_w is left
+    as it was). Returns the log total, the log of the weighted mean likelihood; ``s1``, ``s2``
+    (L,) receive sum w and sum w^2 (w scaled by a common factor) of each roughness level
+    (particle slot i belongs to level i % L): the effective sample size of a level is
+    s1^2 / s2."""
+    n = log_w.shape[0]
+    n_levels = s1.shape[0]
+    hi = -math.inf
+    for i in range(n):
+        lik[i] = log_w[i] + math.log(lik[i])
+        hi = max(hi, lik[i])
+    s1[:] = 0.0
+    s2[:] = 0.0
+    if not math.isfinite(hi):
+        return -math.inf
+    for i in range(n):
+        d = lik[i] - hi
+        if d > -700.0:  # below, e^d adds nothing to a sum >= 1 (and would be subnormal)
+            e = math.exp(d)
+            s1[i % n_levels] += e
+            s2[i % n_levels] += e * e
+    total = hi + math.log(np.sum(s1))
+    if not math.isfinite(total):
+        return -math.inf
+    for i in range(n):
+        log_w[i] = lik[i] - total
+    return total
+
+
+@kernel
+def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_db: FloatArray,
+                   log_w: FloatArray, p: RadioParams) -> tuple[float, float]:
+    """The classic filter's whole update (the radio model trusted exactly): each particle's
+    power from the receiver pose, its likelihood L for the detections z_db (J,), and the
+    log-weights (N,) updated in place by Bayes' rule and normalised. Returns (log of the
+    weighted mean likelihood, effective sample size 1 / sum w^2); if that log is not finite
+    (every particle impossible), ``log_w`` is left unchanged and the ESS is NaN."""
+    n = states.shape[0]
+    nz = z_db.shape[0]
+    sin_yaw, cos_yaw = math.sin(rx_yaw_rad), math.cos(rx_yaw_rad)
+    rx, ry, rz = rx_xyz[0], rx_xyz[1], rx_xyz[2]
+    lik = np.empty(n)
+    g_in = np.empty(nz)
+    share = np.empty(nz)
+    for i in range(n):
+        log_term, gain = geometry(states[i, 0], states[i, 1], rx, ry, rz, sin_yaw, cos_yaw, p)
+        mean = p.p0_db + gain + p.path_loss_exponent * log_term
+        pd, miss = detection(mean, 0.0, p)
+        for j in range(nz):
+            g_in[j] = inlier_density(z_db[j] - mean, p.noise_var, p)
+        lik[i] = likelihood(pd, miss, g_in, share, p)
+    s1 = np.empty(1)
+    s2 = np.empty(1)
+    total = _reweight_levels(log_w, lik, s1, s2)
+    return total, s1[0] * s1[0] / s2[0] if math.isfinite(total) else math.nan
+
+
+@kernel
+def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: LevelArray,
+                  rx_xyz: FloatArray, rx_yaw_rad: float, nb_poses: FloatArray, nb_z_db: FloatArray,
+                  beta: FloatArray, r2: FloatArray, extra_var: FloatArray, z_db: FloatArray,
+                  log_w: FloatArray, p: RadioParams
+                  ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
+    """The robust filter's whole update (:mod:`core.radio_belief`), in place.
+
+    Each particle's power predicted from its Gaussian over (offset b, exponent n) (``mean``
+    (N, 2), ``cov`` (N, 3) ``[bb, bn, nn]``): marginal (for pD, widened by its level's
+    ``extra_var`` (L,)) and prewhitened against the m neighbour cells ``nb_poses`` (m, 4)
+    ``[x, y, z, yaw]`` with mean powers ``nb_z_db`` (m,) by its level's ``beta`` (L, m), with
+    variance ``r2`` (L,). Then L for the detections z_db (J,), one weighted, moment-matched
+    Kalman step of the Gaussian per detection (in order, each predicted afresh), and the
+    log-weights updated as by :func:`classic_update`. Returns (log of the weighted mean
+    likelihood, (J,) prior-weighted inlier probability of each detection, (L,) sum w and
+    (L,) sum w^2 of each level's new weights, w scaled by a common factor)."""
+    n = states.shape[0]
+    nz = z_db.shape[0]
+    n_levels, m = beta.shape
+    sin_yaw, cos_yaw = math.sin(rx_yaw_rad), math.cos(rx_yaw_rad)
+    rx, ry, rz = rx_xyz[0], rx_xyz[1], rx_xyz[2]
+    nb_sin = np.sin(nb_poses[:, 3])
+    nb_cos = np.cos(nb_poses[:, 3])
+    z_shift = np.zeros(n_levels)  # sum_k beta_k z_k: the prewhitening of z, per level
+    beta_sum = np.zeros(n_levels)
+    conditioned = np.zeros(n_levels, np.bool_)  # any beta_k != 0 (else no neighbour terms)
+    for lev in range(n_levels):
+        for k in range(m):
+            z_shift[lev] += beta[lev, k] * nb_z_db[k]
+            beta_sum[lev] += beta[lev, k]
+            conditioned[lev] |= beta[lev, k] != 0.0
+    lik = np.empty(n)
+    g_in = np.empty(nz)
+    share = np.empty(nz)
+    mass = np.zeros(nz)
+    for i in range(n):
+        lev = level[i]
+        l0, g0 = geometry(states[i, 0], states[i, 1], rx, ry, rz, sin_yaw, cos_yaw, p)
+        lt = l0  # prewhitened regressors: H~ = [one, lt], c~ = base
+        base = p.p0_db * (1.0 - beta_sum[lev]) + g0
+        for k in range(m if conditioned[lev] else 0):
+            lk, gk = geometry(states[i, 0], states[i, 1], nb_poses[k, 0], nb_poses[k, 1],
+                              nb_poses[k, 2], nb_sin[k], nb_cos[k], p)
+            lt -= beta[lev, k] * lk
+            base -= beta[lev, k] * gk
+        one = 1.0 - beta_sum[lev]
+        b, e_n = mean[i, 0], mean[i, 1]
+        cbb, cbn, cnn = cov[i, 0], cov[i, 1], cov[i, 2]
+        # marginal prediction m = P0 + g + H mu, v = H Sigma H', H = [1, l0]
+        var = (cbb + cbn * l0) + l0 * (cbn + cnn * l0)
+        pd, miss = detection(p.p0_db + g0 + b + l0 * e_n, max(var, 0.0) + extra_var[lev], p)
+        for j in range(nz):
+            sh0 = cbb * one + cbn * lt
+            sh1 = cbn * one + cnn * lt
+            s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
+            g_in[j] = inlier_density(z_db[j] - z_shift[lev] - (base + one * b + lt * e_n), s, p)
+        lik[i] = likelihood(pd, miss, g_in, share, p)
+        w_prior = math.exp(log_w[i]) if nz else 0.0
+        for j in range(nz):
+            w = min(max(share[j], 0.0), 1.0)
+            mass[j] += w_prior * w
+            # the Gaussians move with each detection: predict afresh
+            sh0 = cbb * one + cbn * lt
+            sh1 = cbn * one + cnn * lt
+            s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
+            e = z_db[j] - z_shift[lev] - (base + one * b + lt * e_n)
+            b += w * e / s * sh0
+            e_n += w * e / s * sh1
+            f = w / s - w * (1.0 - w) * e * e / (s * s)
+            cbb = max(cbb - f * sh0 * sh0, 0.0)  # rounding never makes a variance negative
+            cbn -= f * sh0 * sh1
+            cnn = max(cnn - f * sh1 * sh1, 0.0)
+        mean[i, 0], mean[i, 1] = b, e_n
+        cov[i, 0], cov[i, 1], cov[i, 2] = cbb, cbn, cnn
+    s1 = np.empty(n_levels)
+    s2 = np.empty(n_levels)
+    total = _reweight_levels(log_w, lik, s1, s2)
+    return total, mass, s1, s2

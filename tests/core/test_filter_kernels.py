@@ -1,0 +1,172 @@
+"""The filter's compiled kernels equal the model's definitions (core.radio, scipy) and a small
+numpy reference of the robust update (the equations of core.radio_belief, written out here)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from mexgen_gcs.core.filter_kernels import (
+    classic_update,
+    detection,
+    geometry,
+    radio_params,
+    robust_update,
+)
+from mexgen_gcs.core.radio import RadioModel
+
+RADIO = RadioModel()
+
+
+def test_geometry_matches_the_radio_model() -> None:
+    rng = np.random.default_rng(0)
+    radio = RadioModel(front_back_db=4.0, min_distance_m=2.0, d0_m=1.5)
+    p = radio_params(radio)
+    tag = rng.uniform(-300, 300, (500, 2))
+    tag[:5] = 0.0  # right below the receiver
+    for rx_z in (0.0, 0.5, 60.0):
+        rx = np.array([0.0, 0.0, rx_z])
+        yaw = float(rng.uniform(0, 2 * math.pi))
+        ours = np.array([geometry(t[0], t[1], 0.0, 0.0, rx_z, math.sin(yaw), math.cos(yaw), p)
+                         for t in tag])
+        log_term, gain = radio.geometry(tag, rx, yaw)
+        np.testing.assert_allclose(ours[:, 0], log_term, rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(ours[:, 1], gain, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("pd_max", [1.0, 0.95, 0.999999, 0.3])
+def test_detection_matches_the_probit_formula_in_both_tails(pd_max: float) -> None:
+    """pD and 1 - pD against scipy's probit, each to full relative precision in its small
+    tail (x from -37 to 40 spreads), and the certain-detection shortcut (x >= 12)."""
+    radio = RadioModel(sensitivity_db=-120.0, detection_spread_db=2.0, pd_max=pd_max)
+    p = radio_params(radio)
+    mean = np.concatenate([np.linspace(-194.0, -40.0, 2000), [-96.0, -80.0, -40.0]])
+    var = np.random.default_rng(1).uniform(0.0, 0.2, mean.size)
+    var[-3:] = 0.0  # x = 12, 20, 40: the shortcut
+    ours = np.array([detection(float(m), float(v), p) for m, v in zip(mean, var, strict=True)])
+    x = (mean + 120.0) / np.sqrt(4.0 + var)
+    assert x.min() < -36.0 and x.max() == 40.0
+    floor = 1.0 - min(pd_max, 1.0 - 1e-12)
+    np.testing.assert_allclose(ours[:, 0], pd_max * ndtr(x), rtol=1e-12, atol=0.0)
+    np.testing.assert_allclose(ours[:, 1], floor + pd_max * ndtr(-x), rtol=1e-12,
+                               atol=1.1e-12 if pd_max == 1.0 else 0.0)  # floor not added x<0
+
+
+@pytest.mark.parametrize("n_z", [0, 1, 3])
+def test_classic_update_is_bayes_rule_with_the_radio_model(n_z: int) -> None:
+    rng = np.random.default_rng(n_z)
+    radio = RadioModel(clutter_rate=0.05, sensitivity_db=-50.0)
+    states = np.column_stack([rng.uniform(-500, 500, (1000, 2)), rng.normal(size=(1000, 2))])
+    rx, yaw = np.array([30.0, -20.0, 40.0]), 1.1
+    z = rng.uniform(-60.0, -30.0, n_z)
+    log_w0 = rng.normal(size=1000)
+    log_w0 -= np.log(np.exp(log_w0).sum())
+    log_w = log_w0.copy()
+    log_mean_l, ess = classic_update(states, rx, yaw, z, log_w, radio_params(radio))
+    power = radio.power_db(states[:, :2], rx, yaw)
+    pd = radio.detection_probability(power)
+    lik = 1 - pd
+    for zj in z:
+        lik = lik + pd * np.exp(radio.log_likelihood(zj, power)) / radio.clutter_density
+    post = np.exp(log_w0) * lik
+    np.testing.assert_allclose(log_mean_l, math.log(post.sum()), rtol=1e-12)
+    np.testing.assert_allclose(np.exp(log_w), post / post.sum(), rtol=1e-10, atol=1e-300)
+    assert ess == pytest.approx(1.0 / float(np.sum((post / post.sum()) ** 2)), rel=1e-10)
+
+
+def test_classic_update_keeps_the_weights_when_every_particle_is_impossible() -> None:
+    log_w = np.full(3, -np.inf)
+    states = np.zeros((3, 4))
+    total, ess = classic_update(states, np.zeros(3), 0.0, np.array([-40.0]), log_w,
+                                radio_params(RADIO))
+    assert total == -np.inf and math.isnan(ess)
+    assert np.all(log_w == -np.inf)
+
+
+def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta, r2,
+                      extra, z, log_w):
+    """The robust update in numpy, straight from core.radio_belief's equations."""
+    mean, cov = mean.copy(), cov.copy()
+    xy = states[:, :2]
+    lev = level.astype(int)
+    b, r2n, ex = beta[lev], r2[lev], extra[lev]  # (N, m), (N,), (N,)
+    l0, g0 = radio.geometry(xy, rx, yaw)
+    if nb_poses.shape[0]:
+        lk, gk = radio.geometry(xy[:, None, :], nb_poses[None, :, :3], nb_poses[None, :, 3])
+    else:
+        lk = gk = np.zeros((xy.shape[0], 0))
+    one = 1.0 - b.sum(axis=1)
+    base = radio.p0_db * one + g0 - (b * gk).sum(axis=1)
+    lt = l0 - (b * lk).sum(axis=1)
+    z_t = z[None, :] - (b @ nb_z)[:, None]
+
+    def whitened():
+        sh = np.column_stack([cov[:, 0] * one + cov[:, 1] * lt, cov[:, 1] * one + cov[:, 2] * lt])
+        m = base + one * mean[:, 0] + lt * mean[:, 1]
+        return m, np.maximum(one * sh[:, 0] + lt * sh[:, 1], 0.0), sh
+
+    m_marg = radio.p0_db + g0 + mean[:, 0] + l0 * mean[:, 1]
+    v_marg = np.maximum(cov[:, 0] + 2 * l0 * cov[:, 1] + l0 * l0 * cov[:, 2], 0.0)
+    pd = radio.pd_max * ndtr((m_marg - radio.sensitivity_db)
+                             / np.sqrt(radio.detection_spread_db**2 + v_marg + ex))
+    m_w, v_w, _ = whitened()
+    s = v_w + r2n
+    e = z_t - m_w[:, None]
+    g_in = (1 - eps) * np.exp(-0.5 * e * e / s[:, None]) / np.sqrt(2 * np.pi * s[:, None])
+    g = g_in + eps / (radio.clutter_max_db - radio.clutter_min_db)
+    parts = pd[:, None] * g / radio.clutter_density
+    lik = 1 - pd + parts.sum(axis=1)
+    gains = parts / lik[:, None] * (g_in / g)
+    mass = np.exp(log_w) @ gains
+    for j in range(z.size):
+        m_w, v_w, sh = whitened()
+        s = v_w + r2n
+        e = z_t[:, j] - m_w
+        w = np.clip(gains[:, j], 0, 1)
+        mean += (w * e / s)[:, None] * sh
+        f = w / s - w * (1 - w) * e * e / (s * s)
+        cov[:, 0] = np.maximum(cov[:, 0] - f * sh[:, 0] ** 2, 0.0)
+        cov[:, 1] -= f * sh[:, 0] * sh[:, 1]
+        cov[:, 2] = np.maximum(cov[:, 2] - f * sh[:, 1] ** 2, 0.0)
+    post = np.exp(log_w) * lik
+    return mean, cov, math.log(post.sum()), post / post.sum(), mass
+
+
+@pytest.mark.parametrize(("n_nb", "n_z", "eps"), [(0, 1, 0.05), (4, 1, 0.05), (4, 2, 0.0),
+                                                   (3, 0, 0.05)])
+def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: float) -> None:
+    rng = np.random.default_rng(10 * n_nb + n_z)
+    radio = RadioModel(sensitivity_db=-55.0)
+    n, n_levels = 999, 3
+    states = np.column_stack([rng.uniform(-400, 400, (n, 2)), np.zeros((n, 2))])
+    mean = np.column_stack([rng.normal(0, 3, n), rng.uniform(1.2, 2.5, n)])
+    a, c = rng.uniform(1, 9, n), rng.uniform(0.01, 0.1, n)
+    cov = np.column_stack([a, rng.uniform(-0.5, 0.5, n) * np.sqrt(a * c), c])
+    level = (np.arange(n) % n_levels).astype(np.int8)
+    rx, yaw = np.array([50.0, 20.0, 45.0]), 2.0
+    nb_poses = np.column_stack([rng.uniform(0, 100, (n_nb, 2)), np.full(n_nb, 45.0),
+                                rng.uniform(0, 6, n_nb)])
+    nb_z = rng.uniform(-60, -40, n_nb)
+    beta = np.ascontiguousarray(rng.uniform(0, 0.2, (n_levels, n_nb)))
+    beta[0] = 0.0  # a level without shadowing
+    r2 = rng.uniform(5.0, 20.0, n_levels)
+    extra = rng.uniform(0.0, 10.0, n_levels)
+    z = rng.uniform(-60.0, -40.0, n_z)
+    log_w = rng.normal(size=n)
+    log_w -= np.log(np.exp(log_w).sum())
+    ref = _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
+                            r2, extra, z, log_w)
+    total, mass, s1, s2 = robust_update(states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
+                                        r2, extra, z, log_w, radio_params(radio, eps))
+    np.testing.assert_allclose(mean, ref[0], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(cov, ref[1], rtol=1e-9, atol=1e-12)
+    assert total == pytest.approx(ref[2], rel=1e-11)
+    np.testing.assert_allclose(np.exp(log_w), ref[3], rtol=1e-9, atol=1e-300)
+    np.testing.assert_allclose(mass, ref[4], rtol=1e-9, atol=1e-300)
+    w = ref[3]
+    lev = np.arange(n) % n_levels
+    ess = np.array([w[lev == k].sum() ** 2 / (w[lev == k] ** 2).sum() for k in range(n_levels)])
+    np.testing.assert_allclose(s1 * s1 / s2, ess, rtol=1e-10)
