@@ -33,7 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.jit import inline, kernel
+from mexgen_gcs.core.jit import LANES, exp64, inline, kernel, log64, max_lanes
 from mexgen_gcs.core.radio import RadioModel
 
 FloatArray = NDArray[np.float64]
@@ -94,11 +94,11 @@ def geometry(px: float, py: float, rx: float, ry: float, rz: float, sin_yaw: flo
     dx = px - rx
     dy = py - ry
     horiz2 = dx * dx + dy * dy
-    dist = math.sqrt(max(horiz2 + rz * rz, p.min_distance2_m2))
-    log_term = _MINUS_10_OVER_LN10 * math.log(dist / p.d0_m)  # log is faster than log10
+    dist = np.sqrt(max(horiz2 + rz * rz, p.min_distance2_m2))
+    log_term = _MINUS_10_OVER_LN10 * log64(dist / p.d0_m)
     if p.front_back_db > 0.0:
         # cos(bearing - yaw) cos(elev) - cos(elev), finite when the tag is right below
-        gain = 0.5 * p.front_back_db * ((dx * sin_yaw + dy * cos_yaw) - math.sqrt(horiz2)) / dist
+        gain = 0.5 * p.front_back_db * ((dx * sin_yaw + dy * cos_yaw) - np.sqrt(horiz2)) / dist
     else:
         gain = 0.0
     return log_term, gain
@@ -109,7 +109,7 @@ def detection(mean_db: float, var_db2: float, p: RadioParams) -> tuple[float, fl
     """(pD, 1 - pD) of a predicted power N(mean_db, var_db2): pD = pd_max Phi(x) with
     x = (mean - sensitivity) / sqrt(spread^2 + var), each to full relative precision in
     both tails (one erfc). 1 - pD >= 1 - pd_max >= 1e-12: a pulse is never certain."""
-    x = (mean_db - p.sensitivity_db) / math.sqrt(p.detection_spread2_db2 + var_db2)
+    x = (mean_db - p.sensitivity_db) / np.sqrt(p.detection_spread2_db2 + var_db2)
     if x >= CERTAIN_X:
         return p.pd_max, p.miss_floor
     if x >= 0.0:
@@ -124,10 +124,7 @@ def detection(mean_db: float, var_db2: float, p: RadioParams) -> tuple[float, fl
 def inlier_density(e_db: float, s_db2: float, p: RadioParams) -> float:
     """(1 - eps) N(e; 0, s): the inlier part of the density of a detected power with
     innovation ``e_db`` and innovation variance ``s_db2`` (0 beyond 37 sigma: no subnormals)."""
-    r = 0.5 * e_db * e_db / s_db2
-    if r > 700.0:
-        return 0.0
-    return p.inlier * math.exp(-r) / math.sqrt(2.0 * math.pi * s_db2)
+    return p.inlier * exp64(-0.5 * e_db * e_db / s_db2) / np.sqrt(2.0 * math.pi * s_db2)
 
 
 @inline
@@ -157,18 +154,25 @@ def _reweight_levels(log_w: FloatArray, lik: FloatArray, s1: FloatArray, s2: Flo
     s1^2 / s2."""
     n = log_w.shape[0]
     n_levels = s1.shape[0]
-    hi = -math.inf
     for i in range(n):
-        lik[i] = log_w[i] + math.log(lik[i])
-        hi = max(hi, lik[i])
+        lik[i] = log_w[i] + log64(lik[i])
+    hi = max_lanes(lik, np.empty(LANES))
     s1[:] = 0.0
     s2[:] = 0.0
     if not math.isfinite(hi):
         return -math.inf
-    for i in range(n):
-        d = lik[i] - hi
-        if d > -700.0:  # below, e^d adds nothing to a sum >= 1 (and would be subnormal)
-            e = math.exp(d)
+    if n_levels == 1:  # one sum each, which LLVM vectorises
+        t1 = 0.0
+        t2 = 0.0
+        for i in range(n):
+            e = exp64(lik[i] - hi)  # 0 below e^-708: nothing beside a sum >= 1
+            t1 += e
+            t2 += e * e
+        s1[0] = t1
+        s2[0] = t2
+    else:
+        for i in range(n):
+            e = exp64(lik[i] - hi)
             s1[i % n_levels] += e
             s2[i % n_levels] += e * e
     total = hi + math.log(np.sum(s1))
@@ -192,15 +196,39 @@ def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_
     sin_yaw, cos_yaw = math.sin(rx_yaw_rad), math.cos(rx_yaw_rad)
     rx, ry, rz = rx_xyz[0], rx_xyz[1], rx_xyz[2]
     lik = np.empty(n)
-    g_in = np.empty(nz)
-    share = np.empty(nz)
+    power = np.empty(n)
+    # positions copied out of the (N, 4) rows first: with a stride of 4 LLVM does not
+    # vectorise the geometry below (3x slower)
+    px = np.empty(n)
+    py = np.empty(n)
     for i in range(n):
-        log_term, gain = geometry(states[i, 0], states[i, 1], rx, ry, rz, sin_yaw, cos_yaw, p)
-        mean = p.p0_db + gain + p.path_loss_exponent * log_term
-        pd, miss = detection(mean, 0.0, p)
-        for j in range(nz):
-            g_in[j] = inlier_density(z_db[j] - mean, p.noise_var, p)
-        lik[i] = likelihood(pd, miss, g_in, share, p)
+        px[i] = states[i, 0]
+        py[i] = states[i, 1]
+    for i in range(n):
+        log_term, gain = geometry(px[i], py[i], rx, ry, rz, sin_yaw, cos_yaw, p)
+        power[i] = p.p0_db + gain + p.path_loss_exponent * log_term
+    weakest = -max_lanes(-power, np.empty(LANES))
+    spread = math.sqrt(p.detection_spread2_db2)
+    if nz <= 1 and (weakest - p.sensitivity_db) / spread >= CERTAIN_X:
+        # every particle certainly detectable (detection() would return the constants) and
+        # at most one power: a loop without branches or calls, which LLVM vectorises
+        lik[:] = p.miss_floor
+        if nz == 1:
+            z = z_db[0]
+            c = p.pd_max * p.inv_kappa * p.inlier / math.sqrt(2.0 * math.pi * p.noise_var)
+            k = -0.5 / p.noise_var
+            floor = p.miss_floor + p.pd_max * p.outlier_density * p.inv_kappa
+            for i in range(n):
+                e = z - power[i]
+                lik[i] = floor + c * exp64(k * e * e)
+    else:
+        g_in = np.empty(nz)
+        share = np.empty(nz)
+        for i in range(n):
+            pd, miss = detection(power[i], 0.0, p)
+            for j in range(nz):
+                g_in[j] = inlier_density(z_db[j] - power[i], p.noise_var, p)
+            lik[i] = likelihood(pd, miss, g_in, share, p)
     s1 = np.empty(1)
     s2 = np.empty(1)
     total = _reweight_levels(log_w, lik, s1, s2)

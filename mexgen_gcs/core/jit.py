@@ -9,6 +9,9 @@ writable), so only the first run on a machine pays the compile.
 Errors follow numpy, not Python (``error_model="numpy"``): a division by zero gives an
 infinity or NaN instead of raising, so numba inserts no check into a loop and LLVM can
 vectorise it (with the check, one division made the planner's power grid eight times slower).
+For the same reason kernels take square roots with ``np.sqrt`` (an LLVM intrinsic), not
+``math.sqrt`` (a call into libm in numba, which stops a loop from vectorising: 3x slower
+for the filter's geometry).
 
 Floating-point flags: the kernels may re-associate sums (so reductions vectorise), contract
 multiply-adds and use approximate reciprocals and functions, but they keep IEEE infinities
@@ -96,10 +99,10 @@ LANES = 16
 
 
 @inline
-def max32(x: NDArray[np.float32], lanes: NDArray[np.float32]) -> np.float32:
-    """max(x) of a 1-D float32 array (-inf if empty; NaN-free input). A running maximum is a
-    chain LLVM does not vectorise (3 times slower here); ``lanes`` (LANES,) scratch holds 16
-    running maxima side by side, which it does."""
+def max_lanes(x: NDArray[Any], lanes: NDArray[Any]) -> Any:
+    """max(x) of a 1-D float array (-inf if empty; NaN-free input). A running maximum is a
+    chain LLVM does not vectorise (3 times slower here); ``lanes`` (LANES,) scratch of x's
+    dtype holds 16 running maxima side by side, which it does."""
     n = x.shape[0]
     lanes[:] = -np.inf
     full = n - n % LANES
@@ -107,9 +110,49 @@ def max32(x: NDArray[np.float32], lanes: NDArray[np.float32]) -> np.float32:
         for j in range(LANES):
             v = x[i + j]
             lanes[j] = v if v > lanes[j] else lanes[j]
-    m = _F(-np.inf)
-    for j in range(LANES):
+    m = lanes[0]
+    for j in range(1, LANES):
         m = lanes[j] if lanes[j] > m else m
     for i in range(full, n):
         m = x[i] if x[i] > m else m
     return m
+
+
+@inline
+def exp64(x: float) -> float:
+    """exp(x) in float64 in operations that vectorise, within 1e-13 relative (the kernels'
+    fast-math flags may re-associate the range reduction); exactly 0 below -708 (also for
+    -inf), +inf above 709.7 (the float64 range)."""
+    xc = min(max(x, -708.0), 709.7)
+    n = math.floor(xc * 1.4426950408889634 + 0.5)
+    r = xc - n * 0.6931471803691238 - n * 1.9082149292705877e-10  # ln 2 in two parts
+    # Taylor to r^12 on |r| <= ln(2) / 2: truncation below 2e-17
+    p = 1.0 + r * (1.0 + r * (0.5 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (
+        1.0 / 120.0 + r * (1.0 / 720.0 + r * (1.0 / 5040.0 + r * (1.0 / 40320.0 + r * (
+            1.0 / 362880.0 + r * (1.0 / 3628800.0 + r * (1.0 / 39916800.0 + r * (
+                1.0 / 479001600.0))))))))))))
+    scale = np.int64((np.int64(n) + np.int64(1023)) << np.int64(52)).view(np.float64)
+    if x < -708.0:
+        return 0.0
+    return math.inf if x > 709.7 else p * scale
+
+
+@inline
+def log64(x: float) -> float:
+    """log(x) in float64 for finite normal x > 0 (no check), within 1e-15 relative, in
+    operations that vectorise: x = m 2^e with m in [sqrt(1/2), sqrt(2)),
+    log m = 2 atanh((m - 1) / (m + 1))."""
+    bits = np.float64(x).view(np.int64)
+    e = ((bits >> np.int64(52)) & np.int64(0x7FF)) - np.int64(1022)
+    m = np.int64((bits & np.int64(0x000FFFFFFFFFFFFF)) | np.int64(0x3FE0000000000000)
+                 ).view(np.float64)  # [0.5, 1)
+    if m < 0.7071067811865476:
+        m += m
+        e -= np.int64(1)
+    s = (m - 1.0) / (m + 1.0)  # |s| <= 0.172
+    s2 = s * s
+    # 2 atanh(s) = 2 (s + s^3/3 + ...), to s^23: truncation below 1e-18
+    t = 2.0 + s2 * (2.0 / 3.0 + s2 * (2.0 / 5.0 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0 + s2 * (
+        2.0 / 11.0 + s2 * (2.0 / 13.0 + s2 * (2.0 / 15.0 + s2 * (2.0 / 17.0 + s2 * (
+            2.0 / 19.0 + s2 * (2.0 / 21.0 + s2 * (2.0 / 23.0)))))))))))
+    return s * t + np.float64(e) * 0.6931471805599453

@@ -51,11 +51,6 @@ def normalise_log_weights(log_w: FloatArray) -> tuple[FloatArray, float]:
     return out, float(total[0])
 
 
-def effective_sample_size(log_w: FloatArray) -> float:
-    """1 / sum(w^2) for normalised log-weights (N,); in [1, N]."""
-    return float(1.0 / np.exp(logsumexp(2.0 * log_w)))
-
-
 @inline
 def _systematic(cdf: FloatArray, n: int, u: float) -> IntArray:
     """n systematic draws (u + i) / n from the normalised cumulative weights cdf (M,):

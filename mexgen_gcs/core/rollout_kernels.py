@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.jit import LANES, exp32, inline, kernel, log32, max32
+from mexgen_gcs.core.jit import LANES, exp32, inline, kernel, log32, max_lanes
 
 Float32Array = NDArray[np.float32]
 FloatArray = NDArray[np.float64]
@@ -170,7 +170,7 @@ def update_step(
                     for i in range(n):
                         d = z - pw[i]
                         ow[i] = lp[i] + c_quad * d * d + lw[i]
-                m = max32(ow, lanes)
+                m = max_lanes(ow, lanes)
                 if not math.isfinite(m):  # nothing explains it: keep the prior
                     for i in range(n):
                         ow[i] = lw[i]

@@ -10,6 +10,7 @@ from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig, posterior_e
 from mexgen_gcs.core.filter_kernels import classic_update, radio_params
 from mexgen_gcs.core.motion import make_motion_model
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import RadioUncertainty
 from mexgen_gcs.errors import EstimationError
 
 AREA = SearchArea.rectangle(-500, 500, -500, 500)
@@ -211,3 +212,37 @@ def test_same_seed_same_result_robust_and_imm(motion):
     np.testing.assert_array_equal(a.radio_belief.mean, b.radio_belief.mean)
     np.testing.assert_array_equal(a.radio_belief.cov, b.radio_belief.cov)
     assert a.existence == b.existence
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_estimate_is_the_weighted_moments_of_the_particles(robust):
+    """The compiled moments equal their numpy definitions (mean, covariance, ESS, per-level
+    spread, radio unknowns) on a filter after some updates."""
+    from mexgen_gcs.config.schema import RadioSection
+
+    unknowns = RadioSection().uncertainty() if robust else RadioUncertainty()
+    f = BernoulliFilter(make_motion_model("cv"), RADIO, SearchArea.rectangle(-500, 500, -500, 500),
+                        FilterConfig(n_particles=600, radio_unknowns=unknowns),
+                        np.random.default_rng(4))
+    for k in range(8):
+        f.predict(1.0)
+        f.update(np.array([-45.0 - k]), np.array([30.0 * k, -20.0, 50.0]), 0.3 * k)
+    est = f.estimate()
+    w = np.exp(f.log_w)
+    mean = w @ f.states
+    d = f.states[:, :2] - mean[:2]
+    cov = (d * w[:, None]).T @ d
+    np.testing.assert_allclose(est.mean, mean, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(est.cov_pos, cov, rtol=1e-10, atol=1e-9)
+    assert est.ess == pytest.approx(1.0 / np.sum(w * w), rel=1e-12)
+    radius = f.config.radius_from_trace(float(np.trace(cov)))
+    if robust:
+        lev = np.arange(w.size) % f.n_levels
+        mass = np.bincount(lev, weights=w)
+        spread = np.bincount(lev, weights=w * (d * d).sum(axis=1))
+        ok = mass >= 0.05
+        radius = max(radius, f.config.radius_from_trace(float((spread[ok] / mass[ok]).max())))
+        offset, exponent = w @ f.radio_belief.mean
+        assert est.p0_offset_db == pytest.approx(offset, rel=1e-10, abs=1e-12)
+        assert est.path_loss_exponent == pytest.approx(exponent, rel=1e-10)
+    assert est.radius_m == pytest.approx(radius, rel=1e-10)

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mexgen_gcs.core.jit import exp32, kernel, log32, max32
+from mexgen_gcs.core.jit import exp32, kernel, log32, max_lanes
 from mexgen_gcs.core.likelihood import detection_table
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.reward import logsumexp, renyi_divergence
@@ -86,7 +86,7 @@ def test_float32_exp_and_log_are_float32_accurate():
         for i in range(x.shape[0]):
             out_exp[i] = exp32(-x[i])
             out_log[i] = log32(x[i])
-        return max32(out_log, lanes)
+        return max_lanes(out_log, lanes)
 
     rng = np.random.default_rng(2)
     x = np.concatenate([10.0 ** rng.uniform(-6, 6, 5000), [1.0, 87.0, 87.5, np.inf]])
