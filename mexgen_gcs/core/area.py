@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.jit import kernel
+
 FloatArray = NDArray[np.float64]
 
 
@@ -57,29 +59,19 @@ class SearchArea:
 
     def contains(self, xy: FloatArray) -> NDArray[np.bool_]:
         """Even-odd rule: (..., 2) points -> (...) bool. Points on an edge may go either way."""
-        x, y = xy[..., 0], xy[..., 1]
-        inside = np.zeros(np.shape(x), dtype=bool)
-        v = self.vertices_m
-        xj, yj = v[-1]
-        for xi, yi in v:
-            crosses = (yi > y) != (yj > y)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                x_at = (xj - xi) * (y - yi) / (yj - yi) + xi
-            inside ^= crosses & (x < x_at)
-            xj, yj = xi, yi
-        return inside
+        p = np.asarray(xy, dtype=np.float64)
+        out = np.empty(p.shape[:-1], dtype=np.bool_)
+        polygon_distances(np.ascontiguousarray(p).reshape(-1, 2), self.vertices_m, False,
+                           out.reshape(-1), np.empty(0))
+        return out
 
     def distance_outside_m(self, xy: FloatArray) -> FloatArray:
         """Distance to the boundary for points outside, else 0; (..., 2) -> (...)."""
         p = np.asarray(xy, dtype=np.float64)
-        v = self.vertices_m
-        a, b = v, np.roll(v, -1, axis=0)
-        ab = b - a  # (K, 2)
-        ap = p[..., None, :] - a  # (..., K, 2)
-        t = np.clip((ap * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
-        closest = a + t[..., None] * ab
-        d = np.sqrt(((p[..., None, :] - closest) ** 2).sum(-1)).min(axis=-1)
-        return np.where(self.contains(p), 0.0, d)
+        out = np.empty(p.shape[:-1])
+        polygon_distances(np.ascontiguousarray(p).reshape(-1, 2), self.vertices_m, True,
+                           np.empty(out.size, np.bool_), out.reshape(-1))
+        return out
 
     def fence_polygon(self, margin_m: float, extra_points_m: FloatArray | None = None
                       ) -> FloatArray:
@@ -162,3 +154,32 @@ def convex_hull(points_m: FloatArray) -> FloatArray:
     if len(hull) < 3:
         raise ValueError("a convex hull needs points that are not all on one line")
     return hull
+
+
+@kernel
+def polygon_distances(points: FloatArray, vertices: FloatArray, distances: bool,
+                      inside: NDArray[np.bool_], out: FloatArray) -> None:
+    """For each point (M, 2): whether the polygon (K, 2) contains it (even-odd rule, into
+    ``inside``) and, if ``distances``, its distance to the boundary when outside, else 0
+    (into ``out``). O(M K), compiled: the guidance asks this of a few points every setpoint,
+    where numpy's per-call cost was most of the experiment runner's world time."""
+    k = vertices.shape[0]
+    for m in range(points.shape[0]):
+        x, y = points[m, 0], points[m, 1]
+        crossing = False
+        best = math.inf
+        xj, yj = vertices[k - 1, 0], vertices[k - 1, 1]
+        for i in range(k):
+            xi, yi = vertices[i, 0], vertices[i, 1]
+            if (yi > y) != (yj > y) and x < (xj - xi) * (y - yi) / (yj - yi) + xi:
+                crossing = not crossing
+            if distances:  # to the segment from vertex i to vertex i + 1
+                xb, yb = vertices[(i + 1) % k, 0], vertices[(i + 1) % k, 1]
+                ex, ey = xb - xi, yb - yi
+                t = min(max(((x - xi) * ex + (y - yi) * ey) / (ex * ex + ey * ey), 0.0), 1.0)
+                dx, dy = x - (xi + t * ex), y - (yi + t * ey)
+                best = min(best, dx * dx + dy * dy)
+            xj, yj = xi, yi
+        inside[m] = crossing
+        if distances:
+            out[m] = 0.0 if crossing else np.sqrt(best)

@@ -188,9 +188,14 @@ class BernoulliFilter:
         else:
             beta = p_b * (1.0 - q) / q_pred
             if beta > 0.0:
-                reborn = self.rng.random(self.states.shape[0]) < beta
-                k = int(reborn.sum())
+                # each particle reborn with probability beta, independently: the number is
+                # Binomial(N, beta) and, given it, which ones a uniform subset (one draw, not
+                # N uniforms: beta is ~1e-3 and this runs every pulse for every tag)
+                n = self.states.shape[0]
+                k = int(self.rng.binomial(n, beta))
                 if k:
+                    reborn = np.zeros(n, dtype=np.bool_)
+                    reborn[self.rng.choice(n, k, replace=False)] = True
                     self.states = self.states.copy()
                     self.modes = self.modes.copy()
                     self.states[reborn], self.modes[reborn] = self._birth(k)

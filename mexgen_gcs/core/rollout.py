@@ -81,7 +81,7 @@ from numpy.typing import NDArray
 
 from mexgen_gcs.core.generators import BeliefView, MeasurementGenerator
 from mexgen_gcs.core.likelihood import DetectionTable
-from mexgen_gcs.core.motion import ModeArray, MotionModel
+from mexgen_gcs.core.motion import ModeArray, MotionModel, predict_positions
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.rollout_kernels import grid_params, grid_step, update_step
 from mexgen_gcs.core.workspace import Workspace
@@ -141,10 +141,8 @@ def rollout_gains(
     t0 = clock()
     xy = ws.get("xy", (steps, n_tags, 2, n_pad))  # east, north rows: the kernels vectorise
     for i, b in enumerate(beliefs):
-        state, mode = b.states, b.modes
-        for k in range(steps):
-            state, mode = b.motion.propagate(state, mode, step_s, rng)
-            xy[k, i, :, :n] = state[:, :2].T
+        path = predict_positions(b.motion, b.states, b.modes, step_s, steps, rng)  # (H, N, 2)
+        xy[:, i, :, :n] = path.transpose(0, 2, 1)
     xy[..., n:] = xy[..., :1]
     offset, exponent = _radio_draws(beliefs, n, n_pad, radio)
     t1 = clock()

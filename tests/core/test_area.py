@@ -85,3 +85,18 @@ def test_fence_margin_rejects_bad_values():
     for bad in (-1.0, np.nan, np.inf):
         with pytest.raises(ValueError):
             area.fence_polygon(bad)
+
+
+def test_distance_outside_a_rectangle_everywhere():
+    """The compiled even-odd test and segment distances against the rectangle's closed form,
+    on a grid straddling the boundary, any leading shape."""
+    area = SearchArea.rectangle(-100.0, 300.0, -50.0, 50.0)
+    # no point exactly on an edge (those may go either way)
+    xs, ys = np.meshgrid(np.linspace(-400.5, 599.5, 101), np.linspace(-201.0, 199.0, 41))
+    pts = np.stack([xs, ys], axis=-1)  # (41, 101, 2)
+    dx = np.maximum(np.maximum(-100.0 - xs, xs - 300.0), 0.0)
+    dy = np.maximum(np.maximum(-50.0 - ys, ys - 50.0), 0.0)
+    strictly_in = (np.abs(xs - 100.0) < 200.0) & (np.abs(ys) < 50.0)
+    np.testing.assert_array_equal(area.contains(pts), strictly_in)
+    np.testing.assert_allclose(area.distance_outside_m(pts), np.hypot(dx, dy), atol=1e-9)
+    assert area.contains(np.array([0.0, 0.0])).shape == ()

@@ -148,3 +148,25 @@ def test_takeover_judgement(mode, armed, seen, in_grace, takeover):
     tel = Telemetry(flight_mode=mode, armed=armed)
     assert (judge(exp, tel, seen, now) is not None) == takeover
     assert judge(None, tel, seen, now) is None  # nothing expected (on the ground)
+
+
+def test_predicted_excursion_is_its_kinematics():
+    """The compiled guard equals its equations (module docstring) written with numpy."""
+    from mexgen_gcs.mission.guidance import predicted_excursion_m
+
+    area = SearchArea.rectangle(-200.0, 200.0, -150.0, 150.0)
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        xy, v = rng.uniform(-250, 250, 2), rng.uniform(-15, 15, 2)
+        u = np.vstack([rng.uniform(-15, 15, (8, 2)), v, np.zeros(2)])  # incl. no change, stop
+        p0 = xy + v * 0.3
+        d = u - v
+        gap = np.linalg.norm(d, axis=-1, keepdims=True)
+        unit = np.divide(d, gap, out=np.zeros_like(d), where=gap > 1e-9)
+        ramp = np.minimum(gap / 3.0, 0.05)
+        v1 = v + unit * 3.0 * ramp
+        p1 = p0 + v * ramp + 0.5 * unit * 3.0 * ramp**2 + v1 * (0.05 - ramp)
+        stop = stopping_point(p1, v1, 3.0, 0.0)
+        want = np.maximum(area.distance_outside_m(p1), area.distance_outside_m(stop))
+        got = predicted_excursion_m(area, xy, v, u, 3.0, 0.3, 0.05)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
