@@ -21,6 +21,7 @@ from mexgen_gcs.io.vehicle import wait_until
 from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.phases.common import supervised
 from mexgen_gcs.mission.state import EndReason, MissionEnd, MissionState, ReturnAction
+from mexgen_gcs.mission.warmup import warm_up
 
 
 def _refuse(ctx: MissionContext, reason: EndReason, **fields: object) -> MissionEnd:
@@ -44,6 +45,10 @@ async def run(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
 async def _checks(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
     ctx.phase = "preflight"
     ctx.state = MissionState.CONNECTING
+    # compile (or load from the cache) every kernel now: a compile in flight would stop the
+    # loop and the setpoint stream (mission.warmup)
+    seconds = await asyncio.to_thread(warm_up, ctx.mission)
+    ctx.event("kernels_ready", seconds=round(seconds, 2))
     ctx.event("connecting", url=ctx.connect_url)
     try:
         await ctx.vehicle.connect(ctx.connect_url, ctx.opt.connect_timeout_s)
