@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.jit import LANES, exp64, inline, kernel, log64, max_lanes
-from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio import RadioModel, distance2_and_gain
 
 FloatArray = NDArray[np.float64]
 LevelArray = NDArray[np.int8]
@@ -91,17 +91,10 @@ def geometry(px: float, py: float, rx: float, ry: float, rz: float, sin_yaw: flo
              cos_yaw: float, p: RadioParams) -> tuple[float, float]:
     """(l, g) of a tag at (px, py, 0) seen from (rx, ry, rz) with heading yaw: the exponent's
     regressor ``-10 log10(max(d, d_min) / d0)`` and the antenna gain, dB."""
-    dx = px - rx
-    dy = py - ry
-    horiz2 = dx * dx + dy * dy
-    dist = np.sqrt(max(horiz2 + rz * rz, p.min_distance2_m2))
-    log_term = _MINUS_10_OVER_LN10 * log64(dist / p.d0_m)
-    if p.front_back_db > 0.0:
-        # cos(bearing - yaw) cos(elev) - cos(elev), finite when the tag is right below
-        gain = 0.5 * p.front_back_db * ((dx * sin_yaw + dy * cos_yaw) - np.sqrt(horiz2)) / dist
-    else:
-        gain = 0.0
-    return log_term, gain
+    half_fb = 0.5 * p.front_back_db
+    d2, gain = distance2_and_gain(px - rx, py - ry, rz * rz, p.min_distance2_m2,
+                                  half_fb * sin_yaw, half_fb * cos_yaw, half_fb)
+    return 0.5 * _MINUS_10_OVER_LN10 * log64(d2 / (p.d0_m * p.d0_m)), gain
 
 
 @inline

@@ -36,14 +36,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtr
 
+from mexgen_gcs.core.jit import inline
+
 FloatArray = NDArray[np.float64]
 
 _LOG_2PI = math.log(2.0 * math.pi)
+
+
+@inline
+def distance2_and_gain(dx: Any, dy: Any, dz2: Any, min2: Any, ks: Any, kc: Any,
+                       half_fb: Any) -> tuple[Any, Any]:
+    """:meth:`RadioModel.geometry` for one tag in a compiled kernel (any float type): the
+    squared 3-D distance ``max(dx^2 + dy^2 + dz^2, d_min^2)`` and the antenna gain
+    ``(fb / 2) (cos(bearing - yaw) cos(elev) - cos(elev))``, with the tag at (dx, dy)
+    east/north of the receiver and dz2 the squared height difference; ks, kc = (fb / 2)
+    sin(yaw), (fb / 2) cos(yaw); half_fb = fb / 2. The one implementation the filter's
+    and the planner's kernels share (each takes its own logarithm of the distance)."""
+    h2 = dx * dx + dy * dy
+    d2 = max(h2 + dz2, min2)
+    return d2, (dx * ks + dy * kc - half_fb * np.sqrt(h2)) / np.sqrt(d2)
 
 
 @dataclass(frozen=True, slots=True)

@@ -26,7 +26,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.jit import LANES, exp32, inline, kernel, log32, max_lanes
+from mexgen_gcs.core.jit import LANES, exp32, kernel, log32, max_lanes
+from mexgen_gcs.core.radio import distance2_and_gain
 
 Float32Array = NDArray[np.float32]
 FloatArray = NDArray[np.float64]
@@ -34,19 +35,6 @@ Int32Array = NDArray[np.int32]
 
 _F = np.float32
 _INV_LN10 = 1.0 / math.log(10.0)
-
-
-@inline
-def _geometry(dx: np.float32, dy: np.float32, dz2: np.float32, min2: np.float32,
-              ks: np.float32, kc: np.float32, half_fb: np.float32
-              ) -> tuple[np.float32, np.float32]:
-    """log10(distance^2) and the antenna gain 0.5 fb (cos(bearing - yaw) cos(elev) -
-    cos(elev)) (core.radio) of a tag at (dx, dy, -dz) from the receiver; ks, kc = 0.5 fb
-    sin(yaw), 0.5 fb cos(yaw)."""
-    h2 = dx * dx + dy * dy
-    d2 = max(h2 + dz2, min2)
-    gain = (dx * ks + dy * kc - half_fb * np.sqrt(h2)) / np.sqrt(d2)
-    return log32(d2) * _F(_INV_LN10), gain
 
 
 @kernel
@@ -88,11 +76,13 @@ def grid_step(
             # does not (the table lookup is a gather)
             if exponent.shape[0] > 0:  # p0 - 5 n_i (log10(d^2) - 2 log10(d0)) + gain
                 for i in range(n):
-                    l10, gain = _geometry(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+                    d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+                    l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
                     pw[i] = (l10 - _F(2.0) * log10_d0) * (_F(-5.0) * exponent[t, i]) + p0 + gain
             else:
                 for i in range(n):
-                    l10, gain = _geometry(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+                    d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+                    l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
                     pw[i] = l10 * c_slope + c_const + gain
             if offset_db.shape[0] > 0:
                 for i in range(n):
