@@ -23,9 +23,9 @@ import numpy as np
 
 from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.mission_core import MissionCore
-from mexgen_gcs.core.planner import VehicleState
+from mexgen_gcs.core.planner import Planner, VehicleState
 from mexgen_gcs.mission.guidance import velocity_setpoint
-from mexgen_gcs.mission.planning import MissionPlanner
+from mexgen_gcs.mission.planning import planner_config
 
 
 def warm_up(mission: Any) -> float:
@@ -47,10 +47,11 @@ def warm_up(mission: Any) -> float:
         f.resample()
     vehicle = VehicleState(rx, np.zeros(2), 0.0)
     request = core.plan_request(2.0, vehicle)
-    if request is not None:
-        planner = MissionPlanner(mission)
+    if request is not None:  # the core planner, as the flight's planner worker runs it
+        radio = mission.radio_model()
         for method in METHODS:
-            planner.plan(request, method, rng)
+            Planner(planner_config(mission, method), radio, area).plan(
+                request.beliefs, request.vehicle, rng)
     velocity_setpoint(0.0, float(mission.flight.speed_m_s), (float(rx[0]), float(rx[1])),
                       float(rx[2]), float(rx[2]), area, 0.0)
     return time.perf_counter() - t0
