@@ -152,7 +152,6 @@ class BernoulliFilter:
         levels = np.asarray(self.unknowns.levels)  # (L, 2) shadowing std, model error std
         self._level_shadow_var = np.ascontiguousarray(levels[:, 0] ** 2)
         self._level_noise_var = radio.noise_var + levels[:, 1] ** 2  # receiver + model error
-        self._level_extra_var = self._level_shadow_var + levels[:, 1] ** 2
         step = len(levels)
         self._level_slots = (n - np.arange(step) + step - 1) // step  # particles per level
         speed = float(getattr(motion, "speed_max_m_s", 0.0))
@@ -245,7 +244,7 @@ class BernoulliFilter:
         log_mean_l, mass, s1, s2 = robust_update(
             self.states, belief.mean, belief.cov, belief.level, rx, yaw,
             np.ascontiguousarray(mem.poses[idx]), np.ascontiguousarray(mem.z_db[idx]), beta, r2,
-            self._level_extra_var, z, self.log_w, self._params)
+            z, self.log_w, self._params)
         for j in np.flatnonzero(mass > 0.5):  # remember the pulses most likely the tag's
             mem.add(self.t_s, rx, yaw, float(z[j]))
         return log_mean_l, s1, s2

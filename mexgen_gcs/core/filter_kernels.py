@@ -137,6 +137,22 @@ def likelihood(pd: float, miss: float, g_in: FloatArray, share: FloatArray, p: R
 
 
 @inline
+def robust_likelihood(pd: float, miss: float, g_in: FloatArray, share: FloatArray,
+                      p: RadioParams) -> float:
+    """:func:`likelihood` with each detection's inlier term ``g_in`` (J,) already the joint
+    density of detecting the pulse and reading its power, pD(z) (1 - eps) N(z); outliers keep
+    the marginal pD. ``share`` (J,) receives each detection's inlier responsibility."""
+    nz = g_in.shape[0]
+    total = miss
+    for j in range(nz):
+        g_in[j] *= p.inv_kappa
+        total += g_in[j] + pd * p.outlier_density * p.inv_kappa
+    for j in range(nz):
+        share[j] = g_in[j] / total
+    return total
+
+
+@inline
 def _reweight_levels(log_w: FloatArray, lik: FloatArray, s1: FloatArray, s2: FloatArray
                      ) -> float:
     """Bayes' rule on normalised log-weights in place, ``log_w <- log_w + log lik - log
@@ -231,16 +247,17 @@ def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_
 @kernel
 def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: LevelArray,
                   rx_xyz: FloatArray, rx_yaw_rad: float, nb_poses: FloatArray, nb_z_db: FloatArray,
-                  beta: FloatArray, r2: FloatArray, extra_var: FloatArray, z_db: FloatArray,
+                  beta: FloatArray, r2: FloatArray, z_db: FloatArray,
                   log_w: FloatArray, p: RadioParams
                   ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
     """The robust filter's whole update (:mod:`core.radio_belief`), in place.
 
     Each particle's power predicted from its Gaussian over (offset b, exponent n) (``mean``
-    (N, 2), ``cov`` (N, 3) ``[bb, bn, nn]``): marginal (for pD, widened by its level's
-    ``extra_var`` (L,)) and prewhitened against the m neighbour cells ``nb_poses`` (m, 4)
-    ``[x, y, z, yaw]`` with mean powers ``nb_z_db`` (m,) by its level's ``beta`` (L, m), with
-    variance ``r2`` (L,). Then L for the detections z_db (J,), one weighted, moment-matched
+    (N, 2), ``cov`` (N, 3) ``[bb, bn, nn]``), prewhitened against the m neighbour cells
+    ``nb_poses`` (m, 4) ``[x, y, z, yaw]`` with mean powers ``nb_z_db`` (m,) by its level's
+    ``beta`` (L, m), with variance ``r2`` (L,) (shadowing, receiver noise and model error);
+    pD of that prediction less the receiver noise, and for each detection pD given its
+    power. Then L for the detections z_db (J,), one weighted, moment-matched
     Kalman step of the Gaussian per detection (in order, each predicted afresh), and the
     log-weights updated as by :func:`classic_update`. Returns (log of the weighted mean
     likelihood, (J,) prior-weighted inlier probability of each detection, (L,) sum w and
@@ -277,15 +294,21 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
         one = 1.0 - beta_sum[lev]
         b, e_n = mean[i, 0], mean[i, 1]
         cbb, cbn, cnn = cov[i, 0], cov[i, 1], cov[i, 2]
-        # marginal prediction m = P0 + g + H mu, v = H Sigma H', H = [1, l0]
-        var = (cbb + cbn * l0) + l0 * (cbn + cnn * l0)
-        pd, miss = detection(p.p0_db + g0 + b + l0 * e_n, max(var, 0.0) + extra_var[lev], p)
+        # conditional prediction of the power given the neighbours: mean, variance s of the
+        # reported power and vp of the received power (s less the receiver noise)
+        pred = z_shift[lev] + base + one * b + lt * e_n
+        sh0 = cbb * one + cbn * lt
+        sh1 = cbn * one + cnn * lt
+        s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
+        vp = max(s - p.noise_var, 0.0)
+        pd, miss = detection(pred, vp, p)
         for j in range(nz):
-            sh0 = cbb * one + cbn * lt
-            sh1 = cbn * one + cnn * lt
-            s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
-            g_in[j] = inlier_density(z_db[j] - z_shift[lev] - (base + one * b + lt * e_n), s, p)
-        lik[i] = likelihood(pd, miss, g_in, share, p)
+            # a detected power is both a draw of the received power and evidence that it was
+            # above the threshold: pD given z (the power's conditional law), not pD
+            e = z_db[j] - pred
+            pd_z, _ = detection(pred + vp / s * e, vp * p.noise_var / s, p)
+            g_in[j] = inlier_density(e, s, p) * pd_z
+        lik[i] = robust_likelihood(pd, miss, g_in, share, p)
         w_prior = math.exp(log_w[i]) if nz else 0.0
         for j in range(nz):
             w = min(max(share[j], 0.0), 1.0)

@@ -27,14 +27,25 @@ memory and the neighbour conditioning shared by every particle.
 - Roughness levels: shadowing and model error are scaled by a level per particle (particle
   slot ``i`` has level ``i % L``); the filter resamples within levels, so the levels form a
   bank of filters weighted by their marginal likelihoods (:mod:`core.bernoulli`).
-- Detection probability of a particle marginalises its power uncertainty ``v = H Sigma H'``
-  and the shadowing and model error of the instantaneous power::
+- Detection and the reported power share everything but the receiver noise ``R0``
+  (``noise_std_db^2``): the received power given the neighbours is ``N(pred, vp)`` with
+  ``pred = z_shift + c~ + H~ mu`` and ``vp = H~ Sigma H~' + r^2 - R0`` (parameters, shadowing
+  and model error), and a pulse is detected on that power. So a missed pulse has
+  ``1 - pD`` with::
 
-      pD = pd_max Phi((m - sensitivity) / sqrt(spread^2 + v + sigma_s^2 + model_error^2))
+      pD = pd_max Phi((pred - sensitivity) / sqrt(spread^2 + vp))
+
+  and a detected power ``z`` carries both its density and the evidence that the power was
+  above the threshold *given z* (the power given z is ``N(pred + vp e / S, vp R0 / S)``)::
+
+      pD(z) = pd_max Phi((pred + vp e / S - sensitivity) / sqrt(spread^2 + vp R0 / S))
+
+  Using the marginal pD for a detection instead counts the selection twice: under shadowing
+  and fading the detected pulses are the strong ones, and their power already says so.
 
 - A detected power ``z`` has the robust likelihood of an outlier mixture::
 
-      g(z | x) = (1 - eps) N(z~; c~ + H~ mu, H~ Sigma H~' + r^2) + eps U(z; clutter range)
+      g(z | x) = (1 - eps) pD(z) N(z~; c~ + H~ mu, S) + eps pD U(z; clutter range)
 
   The Kalman step is weighted by the particle's inlier responsibility ``w`` and
   moment-matched, so one bad pulse neither drags the unknowns nor collapses their variance::

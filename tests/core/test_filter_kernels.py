@@ -87,12 +87,12 @@ def test_classic_update_keeps_the_weights_when_every_particle_is_impossible() ->
 
 
 def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta, r2,
-                      extra, z, log_w):
+                      z, log_w):
     """The robust update in numpy, straight from core.radio_belief's equations."""
     mean, cov = mean.copy(), cov.copy()
     xy = states[:, :2]
     lev = level.astype(int)
-    b, r2n, ex = beta[lev], r2[lev], extra[lev]  # (N, m), (N,), (N,)
+    b, r2n = beta[lev], r2[lev]  # (N, m), (N,)
     l0, g0 = radio.geometry(xy, rx, yaw)
     if nb_poses.shape[0]:
         lk, gk = radio.geometry(xy[:, None, :], nb_poses[None, :, :3], nb_poses[None, :, 3])
@@ -108,18 +108,21 @@ def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, n
         m = base + one * mean[:, 0] + lt * mean[:, 1]
         return m, np.maximum(one * sh[:, 0] + lt * sh[:, 1], 0.0), sh
 
-    m_marg = radio.p0_db + g0 + mean[:, 0] + l0 * mean[:, 1]
-    v_marg = np.maximum(cov[:, 0] + 2 * l0 * cov[:, 1] + l0 * l0 * cov[:, 2], 0.0)
-    pd = radio.pd_max * ndtr((m_marg - radio.sensitivity_db)
-                             / np.sqrt(radio.detection_spread_db**2 + v_marg + ex))
     m_w, v_w, _ = whitened()
     s = v_w + r2n
+    pred = m_w + b @ nb_z  # the power predicted given the neighbours
+    vp = np.maximum(s - radio.noise_var, 0.0)  # its variance less the receiver noise
+    spread2 = radio.detection_spread_db**2
+    pd = radio.pd_max * ndtr((pred - radio.sensitivity_db) / np.sqrt(spread2 + vp))
     e = z_t - m_w[:, None]
-    g_in = (1 - eps) * np.exp(-0.5 * e * e / s[:, None]) / np.sqrt(2 * np.pi * s[:, None])
-    g = g_in + eps / (radio.clutter_max_db - radio.clutter_min_db)
-    parts = pd[:, None] * g / radio.clutter_density
+    # pD given z: the received power given the reported one is N(pred + vp/s e, vp R / s)
+    pd_z = radio.pd_max * ndtr((pred[:, None] + (vp / s)[:, None] * e - radio.sensitivity_db)
+                               / np.sqrt(spread2 + (vp * radio.noise_var / s)[:, None]))
+    g_in = (1 - eps) * np.exp(-0.5 * e * e / s[:, None]) / np.sqrt(2 * np.pi * s[:, None]) * pd_z
+    parts = (g_in + pd[:, None] * eps / (radio.clutter_max_db - radio.clutter_min_db)
+             ) / radio.clutter_density
     lik = 1 - pd + parts.sum(axis=1)
-    gains = parts / lik[:, None] * (g_in / g)
+    gains = g_in / radio.clutter_density / lik[:, None]
     mass = np.exp(log_w) @ gains
     for j in range(z.size):
         m_w, v_w, sh = whitened()
@@ -153,14 +156,13 @@ def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: flo
     beta = np.ascontiguousarray(rng.uniform(0, 0.2, (n_levels, n_nb)))
     beta[0] = 0.0  # a level without shadowing
     r2 = rng.uniform(5.0, 20.0, n_levels)
-    extra = rng.uniform(0.0, 10.0, n_levels)
     z = rng.uniform(-60.0, -40.0, n_z)
     log_w = rng.normal(size=n)
     log_w -= np.log(np.exp(log_w).sum())
     ref = _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
-                            r2, extra, z, log_w)
+                            r2, z, log_w)
     total, mass, s1, s2 = robust_update(states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
-                                        r2, extra, z, log_w, radio_params(radio, eps))
+                                        r2, z, log_w, radio_params(radio, eps))
     np.testing.assert_allclose(mean, ref[0], rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(cov, ref[1], rtol=1e-9, atol=1e-12)
     assert total == pytest.approx(ref[2], rel=1e-11)
@@ -170,3 +172,37 @@ def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: flo
     lev = np.arange(n) % n_levels
     ess = np.array([w[lev == k].sum() ** 2 / (w[lev == k] ** 2).sum() for k in range(n_levels)])
     np.testing.assert_allclose(s1 * s1 / s2, ess, rtol=1e-10)
+
+
+def test_robust_update_counts_the_detection_of_a_strong_pulse_once() -> None:
+    """At the edge of detection, with variation the detection and the reported power share
+    (here 3 dB model error), the detected pulses are the strong ones. The update's pD given z
+    keeps the range posterior honest: its 95 % interval holds the tag in about 95 % of 200
+    repeated listenings, where pD of the prediction (the selection counted twice) puts the
+    tag ~40 m too near and covers it in ~60 % (measured when this test was written)."""
+    radio = RadioModel(front_back_db=0.0, sensitivity_db=-46.0, pd_max=0.95)
+    p = radio_params(radio)
+    x = np.linspace(100.0, 1000.0, 451)  # candidate ranges east of the receiver
+    n = x.size
+    states = np.column_stack([x, np.zeros((n, 3))])
+    rx = np.array([0.0, 0.0, 50.0])
+    x_true, me_std = 400.0, 3.0
+    m_true = float(radio.power_db(np.array([x_true, 0.0]), rx, 0.0))  # -46.1: the edge
+    r2 = np.array([radio.noise_var + me_std**2])
+    rng = np.random.default_rng(1)
+    inside, means = 0, []
+    for _ in range(200):
+        log_w = np.full(n, -math.log(n))
+        mean = np.tile([0.0, radio.path_loss_exponent], (n, 1))  # (b, n) known exactly
+        cov = np.zeros((n, 3))
+        for _ in range(60):
+            power = m_true + rng.normal(0.0, me_std)  # the received power, shared
+            heard = rng.random() < float(radio.detection_probability(np.array(power)))
+            z = np.array([power + rng.normal(0.0, radio.noise_std_db)]) if heard else np.empty(0)
+            robust_update(states, mean, cov, np.zeros(n, np.int8), rx, 0.0, np.zeros((0, 4)),
+                          np.zeros(0), np.zeros((1, 0)), r2, z, log_w, p)
+        cdf = np.cumsum(np.exp(log_w))
+        inside += x[np.searchsorted(cdf, 0.025)] <= x_true <= x[np.searchsorted(cdf, 0.975)]
+        means.append(float(np.exp(log_w) @ x))
+    assert inside / 200 >= 0.9
+    assert abs(np.mean(means) - x_true) < 20.0
