@@ -54,10 +54,13 @@ COLUMNS = (
     "radius_m", "tight_radius_m", "tight_success", "tight_time_s", "tight_n_localised",
     "tight_error_m", "tight_errors_m", "tight_localised_t_s",
     "radii_m", "inside", "tight_radii_m", "tight_inside",
+    "final_radii_m", "final_errors_m",
 )
-"""runs.csv columns (format 3; format 2 had the first 32, format 1 the first 24). ``radii_m``:
-the 95 % radius each tag claimed when it was localised; ``inside``: how many localised tags
-lay inside it (the coverage of the claim). Localise fills success..
+"""runs.csv columns (format 4; format 3 had the first 36, format 2 the first 32, format 1 the
+first 24). ``radii_m``: the 95 % radius each tag claimed when it was localised; ``inside``: how
+many localised tags lay inside it (the coverage of the claim). ``final_radii_m``,
+``final_errors_m``: every tag's 95 % radius and error at the end of the run, localised or not
+(the estimate an operator is left with). Localise fills success..
 localised_t_s and radius_m..tight_localised_t_s (the same at the tight radius), follow
 error_mean_m..trace_final_m2; the rest is common. ``*errors_m`` and ``*localised_t_s`` hold one
 value per tag, ';'-separated (empty where a tag was not localised)."""
@@ -148,6 +151,7 @@ def run_one(spec: RunSpec) -> RunResult:
     vehicle_en = np.zeros((steps, 2))
     error_m = np.full((steps, sc.n_tags), np.nan)
     trace_m2 = np.full((steps, sc.n_tags), np.nan)
+    radius_m = np.full(sc.n_tags, np.nan)  # every tag's 95 % radius at the latest pulse
     localised_err: dict[str, float] = {}
     tight_err: dict[str, float] = {}
     claimed: dict[str, float] = {}
@@ -183,6 +187,7 @@ def run_one(spec: RunSpec) -> RunResult:
             est = report.estimates[tid]
             error_m[i, j] = math.dist(est.mean[:2], tag_xy[j])
             trace_m2[i, j] = est.trace_pos_m2
+            radius_m[j] = est.radius_m
         for rec in report.newly_localised:
             localised_err[rec.tag_id] = error_m[i, tag_ids.index(rec.tag_id)]
             claimed[rec.tag_id] = rec.estimate.radius_m
@@ -209,7 +214,9 @@ def run_one(spec: RunSpec) -> RunResult:
         row.update(_reading(core.tag_ids, core.tight, (tight_err, tight_claimed), tight_t,
                             "tight_"),
                    radius_m=_num(sc.localised_radius_m),
-                   tight_radius_m=_num(sc.tight_radius_m))
+                   tight_radius_m=_num(sc.tight_radius_m),
+                   final_radii_m=";".join(_num(float(r)) for r in radius_m),
+                   final_errors_m=";".join(_num(float(e)) for e in error_m[n - 1]))
     series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
               "trace_m2": trace_m2[:n]}
     return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()},

@@ -246,11 +246,22 @@ def _coverage_table(rows: Rows, prefix: str) -> list[str]:
     """The share of localised tags inside the radius they claimed, per model and method."""
     if not any(r.get(f"{prefix}radii_m", "") for r in rows):
         return []  # format 2 and earlier: no claimed radii stored
+    head = ["| Model | Method | Tags | Inside | Coverage [95 % CI] | Error median (m) | "
+            "Error 95th pct (m) | Error max (m) | Claimed radius median (m) |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     out = ["Coverage of the claim: localised tags (all runs, failed ones included) whose true "
-           "position lay inside the 95 % radius they claimed when localised.", "",
-           "| Model | Method | Tags | Inside | Coverage [95 % CI] | Error median (m) | "
-           "Error 95th pct (m) | Error max (m) | Claimed radius median (m) |",
-           "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+           "position lay inside the 95 % radius they claimed when localised.", "", *head,
+           *_coverage_rows(rows, prefix)]
+    if not prefix and any(r.get("final_radii_m", "") for r in rows):  # format 4
+        out += ["", "Coverage of the final estimate: every tag at the end of its run, localised "
+                "or not (the estimate an operator is left with), inside its 95 % radius.", "",
+                *head, *_coverage_rows(rows, "final_")]
+    return out
+
+
+def _coverage_rows(rows: Rows, prefix: str) -> list[str]:
+    """One coverage line per model and method, of the ``prefix``ed errors and radii."""
+    out = []
     for model, method, sel in groups(rows):
         c = coverage_stats(sel, prefix)
         if not c["tags"]:

@@ -262,6 +262,20 @@ class Localised(BaseModel):
     radius_m: Num = f("Confidence radius.", "m")
 
 
+class Unresolved(BaseModel):
+    """The last estimate of a tag that was not localised (in a result record): where to look,
+    and the 95 % radius that holds it (the same honesty as a claim, only wider)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, strict=True, allow_inf_nan=False)
+
+    lat: Lat = f("Estimated latitude.", "deg", "WGS84")
+    lon: Lon = f("Estimated longitude.", "deg", "WGS84")
+    east_m: float = f("Estimated position east.", "m", "ENU about home")
+    north_m: float = f("Estimated position north.", "m", "ENU about home")
+    radius_m: Num = f("95 % radius.", "m")
+    existence: float = f("Probability that the tag is there at all.", ge=0.0, le=1.0)
+
+
 class Result(Record):
     """Last record of a flight that ended in order: how it ended."""
 
@@ -270,6 +284,9 @@ class Result(Record):
                         "takeover...).")
     exit_code: int = f("The command's exit code: 0 success, 1 failed or aborted.", ge=0)
     localised: dict[str, Localised] = f("Localised tags by id.")
+    unresolved: dict[str, Unresolved] | None = f(
+        "The last estimate of every tag not localised, by id (absent before 2026-11).",
+        default=None)
     rejects: Counts = f("Rejected datagrams per reason, whole flight.")
     duration_s: float = f("Mission duration.", "s", ge=0.0)
     error: str | None = f("The error that ended the mission, if one did.", default=None)

@@ -198,6 +198,7 @@ class MissionController:
             bg.log_rejects(ctx)
             ctx.log.write("result", t=ctx.clock.now(), end_reason=result.end_reason,
                           exit_code=result.exit_code, localised=result.localised,
+                          unresolved=result.unresolved,
                           rejects=result.rejects, duration_s=result.duration_s,
                           error=result.error, takeover=result.takeover,
                           counters=result.counters)

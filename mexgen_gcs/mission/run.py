@@ -245,7 +245,8 @@ def run_sitl(
 
 
 def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -> None:
-    """Add `error_m` per localised tag from the simulator's truth at localisation time."""
+    """Add `error_m` per localised tag from the simulator's truth at localisation time, and per
+    unresolved tag from the last truth."""
     if not truth_path.exists():
         return
     try:
@@ -264,6 +265,10 @@ def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -
         t_loc = info["t"]
         _, e, n = min(rows, key=lambda r: abs(r[0] - t_loc))
         info["error_m"] = math.hypot(info["east_m"] - e, info["north_m"] - n)
+    for tid, info in result.unresolved.items():
+        if rows := history.get(tid):  # the truth at the end
+            _, e, n = max(rows)
+            info["error_m"] = math.hypot(info["east_m"] - e, info["north_m"] - n)
 
 
 def summary_text(result: MissionResult) -> str:
@@ -278,6 +283,10 @@ def summary_text(result: MissionResult) -> str:
         err = f", error {info['error_m']:.1f} m" if "error_m" in info else ""
         lines.append(f"  {tid}: localised after {info['after_s']:.0f} s at "
                      f"({info['lat']:.6f}, {info['lon']:.6f}) +-{info['radius_m']:.0f} m{err}")
+    for tid, info in sorted(result.unresolved.items()):
+        err = f", error {info['error_m']:.1f} m" if "error_m" in info else ""
+        lines.append(f"  {tid}: not localised; last estimate ({info['lat']:.6f}, "
+                     f"{info['lon']:.6f}) +-{info['radius_m']:.0f} m (95 %){err}")
     if result.rejects:
         lines.append("  radio rejects: " + ", ".join(f"{k}={v}" for k, v in result.rejects.items()))
     lines.append(f"  log: {result.log_dir}")

@@ -100,6 +100,8 @@ class MissionResult:
     error: str | None = None
     takeover: dict[str, Any] | None = None
     counters: dict[str, int] = field(default_factory=dict)
+    unresolved: dict[str, dict[str, float]] = field(default_factory=dict)
+    """The last estimate of every tag not localised (where to look, within its 95 % radius)."""
 
 
 @dataclass(frozen=True, slots=True)

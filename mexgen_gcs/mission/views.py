@@ -92,6 +92,14 @@ def build_result(c: MissionContext) -> MissionResult:
                           "east_m": float(rec.estimate.mean[0]),
                           "north_m": float(rec.estimate.mean[1]),
                           "radius_m": rec.estimate.radius_m}
+    unresolved = {}
+    for tid, est in c.core.estimates().items():
+        if tid in localised:
+            continue
+        lat, lon, _ = c.frame.to_geodetic(est.mean[0], est.mean[1])
+        unresolved[tid] = {"lat": float(lat), "lon": float(lon), "east_m": float(est.mean[0]),
+                           "north_m": float(est.mean[1]), "radius_m": float(est.radius_m),
+                           "existence": float(est.existence)}
     takeover = None
     if c.takeover is not None:
         tk = c.takeover
@@ -107,6 +115,7 @@ def build_result(c: MissionContext) -> MissionResult:
     counters.update({f"withheld_{k}": v for k, v in commands["withheld"].items()})
     return MissionResult(
         end_reason=str(reason), exit_code=0 if ok else 1, localised=localised,
+        unresolved=unresolved,
         duration_s=c.clock.now() - c.t_start,
         rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events),
         error=c.error, takeover=takeover, counters=counters)

@@ -215,7 +215,7 @@ def test_cli_preset_field_flies_the_mission_defaults(tmp_path: Path,
                  "pim", "--starts", "1", "--reps", "1", "--quick", "--workers", "1", "--out",
                  str(tmp_path)]) == 0
     ident = json.loads((tmp_path / "experiment.json").read_text())
-    assert ident["preset"] == "field-quick" and ident["format"] == 3
+    assert ident["preset"] == "field-quick" and ident["format"] == 4
     mission = yaml.safe_load((tmp_path / "missions" / "cv-pim.yaml").read_text())
     assert mission["radio"] == {"front_back_db": 3.0, "sensitivity_db": -60.0,
                                 "detection_spread_db": 2.0, "pd_max": 0.95,
@@ -223,6 +223,7 @@ def test_cli_preset_field_flies_the_mission_defaults(tmp_path: Path,
     assert read_rows(tmp_path)[0]["preset"] == "field-quick"
     summary = (tmp_path / "summary.md").read_text()
     assert "field-quick preset" in summary and "sensitivity -60 dB" in summary
+    assert "Coverage of the final estimate" in summary
     assert "--preset field" in (tmp_path / "commands.log").read_text()
     # the default preset is the paper's: another directory's identity
     assert main(["experiment", "localise", "--model", "cv", "--methods", "pim", "--starts", "1",

@@ -88,6 +88,12 @@ def test_localise_run_records_both_readings() -> None:
     assert sim_s == (float(row["tight_time_s"]) if row["tight_success"] == "1" else 400.0)
     assert row["error_mean_m"] == row["trace_mean_m2"] == ""
     assert int(row["plans"]) >= 1 and int(row["detections"]) > 0
+    # every tag's final estimate, localised or not: the series' last error, and its radius
+    final_e = [float(x) for x in row["final_errors_m"].split(";")]
+    final_r = [float(x) for x in row["final_radii_m"].split(";")]
+    assert len(final_e) == len(final_r) == sc.n_tags
+    assert all(0.0 < r < 2.0 * sc.area_half_m for r in final_r)
+    np.testing.assert_allclose(final_e, res.series["error_m"][-1], rtol=1e-5)
 
 
 def test_the_tight_reading_changes_no_decision_before_the_first_completion() -> None:

@@ -188,6 +188,13 @@ def test_faults_lead_to_safe_logged_actions(tmp_path, fault, overrides, expect):
     else:
         assert result.end_reason == "battery_low" and result.exit_code == 1
     assert "landed_and_disarmed" in kinds
+    # every tag is either localised or left with its last estimate, scored against the truth
+    assert not set(result.localised) & set(result.unresolved)
+    assert len(result.localised) + len(result.unresolved) == 4
+    for info in result.unresolved.values():
+        assert info["radius_m"] > 0.0 and info["error_m"] >= 0.0 and 0 <= info["existence"] <= 1
+    (rec,) = [r for r in read_flight_log(result.log_dir).records if r["type"] == "result"]
+    assert set(rec["unresolved"]) == set(result.unresolved)
 
 
 def test_bad_mission_exits_2_before_anything_moves(tmp_path):
