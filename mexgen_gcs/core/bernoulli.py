@@ -46,6 +46,7 @@ from mexgen_gcs.core.jit import exp64, kernel
 from mexgen_gcs.core.motion import ModeArray, MotionModel
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import (
+    PulseNoise,
     RadioBelief,
     RadioUncertainty,
     ShadowMemory,
@@ -323,8 +324,8 @@ class BernoulliFilter:
                         ) -> tuple[FloatArray, ModeArray, FloatArray | None, FloatArray | None]:
         """n equal-weight particles for the planner with, when the radio is uncertain, one
         draw of each particle's (offset dB, exponent) from its Gaussian: states (n, 4), modes
-        (n,), offsets (n,) | None, exponents (n,) | None. The shadowing is left out: it
-        decorrelates along the planned path (the planner adds its variance to the noise)."""
+        (n,), offsets (n,) | None, exponents (n,) | None. The shadowing is not drawn: the
+        planner counts it in each pulse's noise (:meth:`planning_noise`)."""
         if n < 1:
             raise EstimationError(f"cannot sample {n} particles; ask for at least 1")
         idx = systematic_resample(self.log_w, n, rng)
@@ -342,6 +343,27 @@ class BernoulliFilter:
         offset = mu[:, 0] + l11 * g[:, 0]
         exponent = np.maximum(mu[:, 1] + l21 * g[:, 0] + l22 * g[:, 1], 0.1)
         return self.states[idx], self.modes[idx], offset, exponent
+
+
+    def planning_noise(self) -> PulseNoise | None:
+        """What another pulse would tell the planner (:class:`PulseNoise`) under the filter's
+        most likely roughness level, from the cells the filter would condition it on; None
+        for the classic filter (the planner then uses the receiver noise)."""
+        if self.radio_belief is None:
+            return None
+        n_levels = self.n_levels
+        mass = np.bincount(np.arange(self.log_w.shape[0]) % n_levels,
+                           weights=np.exp(self.log_w - self.log_w.max()), minlength=n_levels)
+        lev = int(np.argmax(mass))
+        mem = self.shadow_memory
+        k = mem.count
+        usable = np.ones(k, dtype=np.bool_)
+        if math.isfinite(mem.horizon_s):
+            usable = mem.t_s[:k] >= self.t_s - mem.horizon_s
+        return PulseNoise(np.ascontiguousarray(mem.poses[:k, :2][usable]),
+                          np.ascontiguousarray(mem.n[:k][usable]),
+                          float(self._level_shadow_var[lev]), float(self._level_noise_var[lev]),
+                          self.unknowns.shadowing_distance_m)
 
 
 def posterior_existence(existence: float, log_mean_l: float) -> float:

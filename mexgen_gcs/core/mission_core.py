@@ -231,7 +231,7 @@ class MissionCore:
             f = self.filters[tid]
             states, modes, offset, exponent = f.sample_planning(self.planning_particles, self.rng)
             beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence),
-                                     offset, exponent))
+                                     offset, exponent, f.planning_noise()))
         return PlanRequest(t, vehicle, tuple(beliefs))
 
     def all_localised(self) -> bool:

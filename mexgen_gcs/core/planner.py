@@ -75,6 +75,7 @@ from mexgen_gcs.core.paths import (
     vehicle_paths,
 )
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import PulseNoise
 from mexgen_gcs.core.reward import turn_cost
 from mexgen_gcs.core.rollout import PlanningBelief, rollout_gains
 from mexgen_gcs.core.workspace import Workspace
@@ -185,6 +186,8 @@ class TagBelief:
     """(N,) each particle's received-power offset about the model's P0 (None: 0)."""
     exponent: FloatArray | None = None
     """(N,) each particle's path-loss exponent (None: the model's)."""
+    noise: PulseNoise | None = None
+    """What another pulse would tell, by receiver position (None: the receiver noise)."""
 
 
 class PlanningVehicle(Protocol):

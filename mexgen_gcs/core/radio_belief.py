@@ -290,3 +290,74 @@ def _condition(cells_xy: FloatArray, n_pulses: FloatArray, d_new: FloatArray,
             quad += y[i] * y[i]
         r2[lev] = max(sv + noise_var[lev] - quad, 1e-9)
     return beta, r2
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class PulseNoise:
+    """What one more pulse at a receiver position would tell the planner, given what the
+    filter has heard (its :class:`ShadowMemory`) and its most likely roughness level.
+
+    A pulse at ``u`` is conditioned on the memory's nearest cells (as the filter will condition
+    it): its power is ``z~ = z - sum beta_j z_j`` with variance ``r^2``, and the difference it
+    makes between two candidate tag positions is ``(1 - sum beta_j)`` of the difference in their
+    power at ``u`` (the neighbours' powers differ about as much, the field being smooth there).
+    So for the planner a pulse at u is one with the noise variance::
+
+        R_eff(u) = r^2(u) / (1 - sum beta_j(u))^2
+
+    which is ``sigma_s^2 + R`` (shadowing, receiver noise and model error) far from every
+    cell and grows without bound where the filter has already listened: the planner looks for
+    new places, as the filter values them, instead of circling where the power is known.
+    """
+
+    cells_xy: FloatArray
+    """(K, 2) east, north of the cells the filter conditions on."""
+    n_pulses: FloatArray
+    """(K,) pulses per cell."""
+    shadow_var: float
+    noise_var: float
+    """R: receiver noise plus model error variance, dB^2."""
+    distance_m: float
+
+    def at(self, rx_xy: FloatArray) -> FloatArray:
+        """R_eff (dB^2) of a pulse at each receiver position rx_xy (..., 2); (...) float64."""
+        flat = np.ascontiguousarray(np.asarray(rx_xy, dtype=np.float64).reshape(-1, 2))
+        out = _effective_noise(self.cells_xy, self.n_pulses, flat, self.shadow_var,
+                               self.noise_var, self.distance_m, SHADOW_NEIGHBOURS)
+        return out.reshape(np.shape(rx_xy)[:-1])
+
+
+_MAX_NOISE_FACTOR = 1e6
+"""R_eff is at most this multiple of the marginal variance (a pulse worth nothing)."""
+
+
+@kernel
+def _effective_noise(cells_xy: FloatArray, n_pulses: FloatArray, rx_xy: FloatArray,
+                     shadow_var: float, noise_var: float, distance_m: float, m: int
+                     ) -> FloatArray:
+    """R_eff (P,) of :class:`PulseNoise` at P positions rx_xy (P, 2): the m nearest cells
+    within the correlation cut-off of each, by a partial selection, then :func:`_condition`."""
+    n_cells = cells_xy.shape[0]
+    marginal = shadow_var + noise_var
+    out = np.full(rx_xy.shape[0], marginal)
+    if shadow_var <= 0.0 or n_cells == 0:
+        return out
+    cutoff = -distance_m * math.log(_MIN_CORRELATION)
+    d = np.empty(n_cells)
+    sv = np.array([shadow_var])
+    nv = np.array([noise_var])
+    for p in range(rx_xy.shape[0]):
+        for k in range(n_cells):
+            dx = cells_xy[k, 0] - rx_xy[p, 0]
+            dy = cells_xy[k, 1] - rx_xy[p, 1]
+            d[k] = np.sqrt(dx * dx + dy * dy)
+        near = np.flatnonzero(d < cutoff)
+        if near.size == 0:
+            continue
+        if near.size > m:
+            near = near[np.argsort(d[near])[:m]]
+        beta, r2 = _condition(np.ascontiguousarray(cells_xy[near]),
+                              np.ascontiguousarray(n_pulses[near]), d[near], sv, nv, distance_m)
+        keep = 1.0 - np.sum(beta[0])
+        out[p] = min(r2[0] / max(keep * keep, 1e-300), _MAX_NOISE_FACTOR * marginal)
+    return out

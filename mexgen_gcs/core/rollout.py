@@ -15,6 +15,11 @@ sum w pD / W for the stratified sampler; MC-M its sampled outcome, 0 or 1, per r
     missed:    L-_i = 1 - pD(P_i)                 B- = w L- / sum w L-
     value = sum_k discount^(k-1) r_k,  averaged over the rollouts
 
+R is the receiver noise, or, when the tag's filter is uncertain about the radio, what a pulse
+from that pose would tell it (:class:`core.radio_belief.PulseNoise`: shadowing and model error
+far from where it has listened, much more where it has: the planner then looks for new places
+instead of circling where the power is already known), per step, tag and action.
+
 and r_k, B_k (the belief carried to step k + 1) by the planner's ``outcome`` rule:
 
 - "pooled" (default): the reward of the expected outcome, as MexGen's z is the expected
@@ -176,7 +181,7 @@ def rollout_gains(
     value = np.zeros(shape[:-1])
     offset_grid = none if offset is None else offset.reshape(n_tags, n_pad)
     exponent_grid = none if exponent is None else exponent.reshape(n_tags, n_pad)
-    inv_2r = 0.5 / radio.noise_var
+    inv_2r = _inverse_noise(beliefs, paths, radio)
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
         t2 = clock()
@@ -199,7 +204,7 @@ def rollout_gains(
         t4 = clock()
         # 3. update and 4. reward (core.rollout_kernels)
         update_step(power, log_pd, index, meas.z_db, meas.p_detect, log_w, w, log_total,
-                    tables.update, inv_2r, alpha, pooled, discount**k, log_w_next, w_next,
+                    tables.update, inv_2r[k], alpha, pooled, discount**k, log_w_next, w_next,
                     log_total_next, value)
         log_w, log_w_next = log_w_next, log_w
         w, w_next = w_next, w
@@ -212,6 +217,18 @@ def rollout_gains(
     timing["update"] += update_s
     timing["reward"] += reward_s
     return value.mean(axis=2)
+
+
+def _inverse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray, radio: RadioModel
+                   ) -> FloatArray:
+    """1 / (2 R) per look-ahead step, tag and action, (H, T, A): R the receiver noise, or
+    what a pulse there would tell the tag's filter (:class:`core.radio_belief.PulseNoise`)."""
+    out = np.full((paths.shape[0], len(beliefs), paths.shape[1]), 0.5 / radio.noise_var)
+    for i, b in enumerate(beliefs):
+        noise = getattr(b, "noise", None)
+        if noise is not None:
+            out[:, i, :] = 0.5 / noise.at(paths)
+    return out
 
 
 def _radio_draws(beliefs: Sequence[PlanningBelief], n: int, n_pad: int, radio: RadioModel

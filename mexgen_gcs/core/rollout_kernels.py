@@ -112,7 +112,7 @@ def update_step(
     w: Float32Array,
     log_total: FloatArray,
     tables: Float32Array,
-    inv_2r: float,
+    inv_2r: FloatArray,
     alpha: float,
     pooled: bool,
     discount_k: float,
@@ -127,7 +127,8 @@ def update_step(
     action; z_db, p_detect: (T, A, R) the generated measurement and its detection
     probability; log_w, w, log_total: (T, A, R, N), (T, A, R, N), (T, A, R) the predicted
     belief (max-shifted, see the module); tables: (3, K) the detection table's log(1 - pD) -
-    log pD, 1 - pD and (1 - pD)^alpha; inv_2r = 1 / (2 R). Writes the carried belief to
+    log pD, 1 - pD and (1 - pD)^alpha; inv_2r (T, A) = 1 / (2 R), R the noise of a pulse from
+    the row's pose. Writes the carried belief to
     out_log_w, out_w, out_log_total and adds ``discount_k`` x the row's gain to value (T, A,
     R). ``pooled``: the outcome rule (core.rollout). A row whose outcome nothing explains
     (every likelihood -inf or NaN) keeps its prior. Entries with zero weight stay zero.
@@ -135,10 +136,10 @@ def update_step(
     n_tags, n_act, n_roll, n = log_w.shape
     a32 = _F(alpha)
     b32 = _F(1.0 - alpha)
-    k32 = _F(inv_2r)
     lanes = np.empty(LANES, np.float32)
     for t in range(n_tags):
         for a in range(n_act):
+            k32 = _F(inv_2r[t, a])
             for r in range(n_roll):
                 z = _F(z_db[t, a, r])
                 p = _F(p_detect[t, a, r])

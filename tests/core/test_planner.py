@@ -4,6 +4,7 @@ numerical safety; and a smoke test of the planner benchmark (timing is never ass
 import json
 import math
 import warnings
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -23,6 +24,7 @@ from mexgen_gcs.core.planner import (
     plan,
 )
 from mexgen_gcs.core.radio import RadioModel
+from mexgen_gcs.core.radio_belief import PulseNoise
 from mexgen_gcs.errors import ConfigError, PlannerError
 from mexgen_gcs.mission.planning import plan_record
 
@@ -256,3 +258,22 @@ def test_bench_planner_smoke(capsys):
     printed = json.loads(capsys.readouterr().out)
     assert printed["results"][0]["setting"] == "1 tag"
     assert "MexGen / PIM" in bench_planner.table(out)
+
+
+@pytest.mark.parametrize("method", ["pim", "mexgen"])
+def test_the_planner_looks_where_the_filter_has_not_listened(method):
+    """Under shadowing, a pulse where the filter has listened repeats its shadowing and tells
+    little (core.radio_belief.PulseNoise): with the east already heard, flying west is worth
+    more; without that memory the two are worth the same (the belief is symmetric)."""
+    belief = cluster(np.zeros(2), spread=100.0, seed=1)
+    x = np.arange(20.0, 420.0, 20.0)
+    heard = np.array([(a, b) for a in x for b in np.arange(-200.0, 220.0, 20.0)])
+    noise = PulseNoise(heard, np.full(len(heard), 3.0), 16.0, 15.25, 50.0)
+    config = small_config(method, lookahead_s=20.0)
+    east, west = 2, 6  # of the 8 compass headings
+    plain = plan([belief], HOVER, BIG_AREA, RadioModel(), config, np.random.default_rng(0))
+    assert plain.rewards[east] == pytest.approx(plain.rewards[west], rel=0.2)
+    aware = plan([replace(belief, noise=noise)], HOVER, BIG_AREA, RadioModel(), config,
+                 np.random.default_rng(0))
+    assert aware.rewards[east] < 0.5 * aware.rewards[west]
+    assert aware.headings_deg[aware.chosen] not in (45.0, 90.0, 135.0)

@@ -12,7 +12,13 @@ from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import BernoulliFilter, FilterConfig
 from mexgen_gcs.core.motion import make_motion_model
 from mexgen_gcs.core.radio import RadioModel
-from mexgen_gcs.core.radio_belief import RadioUncertainty, ShadowMemory, shadow_conditioning
+from mexgen_gcs.core.radio_belief import (
+    SHADOW_NEIGHBOURS,
+    PulseNoise,
+    RadioUncertainty,
+    ShadowMemory,
+    shadow_conditioning,
+)
 
 RADIO = RadioModel()
 AREA = SearchArea.rectangle(-600, 600, -600, 600)
@@ -143,7 +149,7 @@ def test_shadow_conditioning_solves_the_gaussian_process_equations():
     for k in range(40):
         mem.add(float(k), np.array([*rng.uniform(0, 120, 2), 40.0]), 0.0, -50.0)
     idx, d = mem.neighbours(40.0, np.array([60.0, 60.0]), 50.0)
-    assert idx.size == 6 and mem.n[idx].max() >= 1
+    assert idx.size == SHADOW_NEIGHBOURS and mem.n[idx].max() >= 1
     shadow, noise = np.array([16.0, 4.0, 0.0]), np.array([6.25, 15.25, 6.25])
     beta, r2 = shadow_conditioning(mem, idx, d, shadow, noise, 50.0)
     p = mem.poses[idx, :2]
@@ -155,3 +161,39 @@ def test_shadow_conditioning_solves_the_gaussian_process_equations():
         np.testing.assert_allclose(beta[lev], ref, rtol=1e-9, atol=1e-12)
         assert r2[lev] == pytest.approx(shadow[lev] + noise[lev] - c @ ref, rel=1e-12)
     assert np.all(beta[2] == 0.0) and r2[2] == 6.25
+
+
+def test_a_pulse_where_the_filter_has_listened_tells_the_planner_little():
+    """R_eff = r^2 / (1 - sum beta)^2: the marginal sigma_s^2 + R far from every cell, the
+    one-cell formula beside a single cell, and growing as the cell fills and as cells
+    surround the place; without shadowing the marginal everywhere."""
+    s, r, big = 16.0, 15.25, 31.25
+    one = PulseNoise(np.array([[0.0, 0.0]]), np.array([1.0]), s, r, 50.0)
+    far, at = one.at(np.array([[500.0, 0.0], [0.0, 0.0]]))
+    assert far == pytest.approx(big)
+    beta = s / (s + r)
+    assert at == pytest.approx((big - s * beta) / (1.0 - beta) ** 2)
+    full = PulseNoise(np.array([[0.0, 0.0]]), np.array([20.0]), s, r, 50.0).at(np.zeros(2))
+    x = np.linspace(-100.0, 100.0, 11)
+    grid = np.array([(a, b) for a in x for b in x])
+    ringed = PulseNoise(grid, np.ones(len(grid)), s, r, 50.0).at(np.array([5.0, 5.0]))
+    assert big < at < full and at < ringed
+    smooth = PulseNoise(grid, np.ones(len(grid)), 0.0, r, 50.0)
+    np.testing.assert_allclose(smooth.at(grid[:5]), r)
+    # shapes: (..., 2) -> (...)
+    assert one.at(np.zeros((3, 4, 2))).shape == (3, 4)
+
+
+def test_the_planner_noise_follows_the_filters_roughness_and_memory():
+    f = _fly(0.0, RADIO.path_loss_exponent, 1, steps=300,
+             unknowns=RadioUncertainty(p0_std_db=4.0, shadowing_std_db=(4.0,),
+                                       model_error_std_db=(3.0,)))
+    noise = f.planning_noise()
+    assert noise is not None and noise.cells_xy.shape[0] == f.shadow_memory.count > 0
+    assert noise.shadow_var == 16.0 and noise.noise_var == RADIO.noise_var + 9.0
+    heard = noise.at(noise.cells_xy[:20])
+    assert np.all(heard > 2.0 * (16.0 + noise.noise_var))  # where it has listened
+    assert noise.at(TAG + 2000.0) == pytest.approx(16.0 + noise.noise_var)
+    classic = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(),
+                              np.random.default_rng(0))
+    assert classic.planning_noise() is None

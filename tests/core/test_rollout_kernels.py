@@ -105,9 +105,15 @@ def test_float32_exp_and_log_are_float32_accurate():
 
 # -- the update step ------------------------------------------------------------------------
 
+def _noise(radio, shape):
+    """Per (tag, action) noise variances: the receiver's, and larger ones (PulseNoise)."""
+    return radio.noise_var * (1.0 + np.arange(shape[0] * shape[1]).reshape(shape[:2]) % 3)
+
+
 def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled):
     """core.rollout's equations in float64 numpy: per row (T, A, R) the carried normalised
     log-weights and the gain."""
+    noise = _noise(radio, log_w.shape)
     pd = np.exp(log_pd.astype(np.float64))
     miss = np.exp(table.log_miss(power).astype(np.float64))
     prior = log_w - logsumexp(log_w)[..., None]
@@ -115,7 +121,7 @@ def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled):
     gains = np.empty(log_w.shape[:-1])
     for t, a, r in np.ndindex(*log_w.shape[:-1]):
         pr, pt = prior[t, a, r], float(p[t, a, r])
-        det = np.log(pd[t, a]) - (z[t, a, r] - power[t, a]) ** 2 / (2 * radio.noise_var)
+        det = np.log(pd[t, a]) - (z[t, a, r] - power[t, a]) ** 2 / (2 * noise[t, a])
         if pooled or pt == 0.0:
             ll = pt * det + (1 - pt) * np.log(miss[t, a]) if pt < 1 else det
             post = pr + ll
@@ -141,7 +147,7 @@ def _run_update(power, log_pd, index, table, z, p, log_w, radio, alpha, pooled):
     out_lw, out_w = np.empty(shape, np.float32), np.empty(shape, np.float32)
     out_total, value = np.empty(shape[:-1]), np.zeros(shape[:-1])
     update_step(power, log_pd, index, z.astype(np.float32), p.astype(np.float32), lw32, w32,
-                log_total, table.arrays(alpha).update, 0.5 / radio.noise_var, alpha, pooled,
+                log_total, table.arrays(alpha).update, 0.5 / _noise(radio, shape), alpha, pooled,
                 1.0, out_lw, out_w, out_total, value)
     return out_lw, out_w, out_total, value
 
