@@ -155,7 +155,7 @@ def report_document(flight: FlightData, s: FlightSummary,
                "1-sigma major (m)", "existence"]
     if s.has_truth:
         headers += ["error at localisation (m)", "inside claimed radius", "final error (m)",
-                    "RMS tracking error (m)"]
+                    "inside final radius", "RMS tracking error (m)"]
     trows = []
     for t in s.tags:
         row = [t.tag_id, str(t.detections), fmt(t.localised_after_s),
@@ -163,10 +163,9 @@ def report_document(flight: FlightData, s: FlightSummary,
                fmt(t.final_north_m), fmt(t.final_radius_m), fmt(t.final_sigma_major_m),
                fmt(t.final_existence, 3)]
         if s.has_truth:
-            inside = t.inside_claimed_radius
-            row += [fmt(t.error_at_localisation_m),
-                    "–" if inside is None else ("yes" if inside else "NO"),
-                    fmt(t.final_error_m), fmt(t.tracking_rms_error_m)]
+            row += [fmt(t.error_at_localisation_m), _yes_no(t.inside_claimed_radius),
+                    fmt(t.final_error_m), _yes_no(t.inside_final_radius),
+                    fmt(t.tracking_rms_error_m)]
         trows.append(row)
     sec.table(headers, trows)
     sec.para("Position, radius and existence are the final estimate; 'localised after' is the "
@@ -207,16 +206,28 @@ def report_document(flight: FlightData, s: FlightSummary,
     return doc
 
 
+def _yes_no(inside: bool | None) -> str:
+    return "–" if inside is None else ("yes" if inside else "NO")
+
+
 def coverage_sentence(tags: Sequence[Any], confidence: float) -> str:
     """How many localised tags were inside the radius claimed for them, with a 95 % Wilson
     interval: the figure that says whether the localisation radius means what it says."""
     from scipy.stats import binomtest
 
     judged = [t.inside_claimed_radius for t in tags if t.inside_claimed_radius is not None]
+    final = [t.inside_final_radius for t in tags
+             if t.inside_final_radius is not None and t.inside_claimed_radius is None]
+    if final:
+        k, n = sum(final), len(final)
+        tail = (f" Of the {n} tags not localised, {k} were inside the radius of their final "
+                "estimate.")
+    else:
+        tail = ""
     if not judged:
-        return "Coverage: no tag was localised, so no claimed radius can be checked."
+        return "Coverage: no tag was localised, so no claimed radius can be checked." + tail
     k, n = sum(judged), len(judged)
     ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
     return (f"Coverage: {k} of {n} localised tags were inside the radius claimed at "
             f"localisation ({k / n:.0%}, 95 % interval {ci.low:.0%}-{ci.high:.0%}); the claim "
-            f"is {confidence:.0%}.")
+            f"is {confidence:.0%}." + tail)

@@ -65,6 +65,9 @@ class TagSummary:
     inside_claimed_radius: bool | None = None
     """Was the truth inside the radius claimed at localisation? None without truth or
     without a localisation."""
+    inside_final_radius: bool | None = None
+    """Was the truth inside the final estimate's radius (localised or not)? None without
+    truth or without an estimate."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -250,7 +253,9 @@ def tag_summary(flight: FlightData, tag_id: str, truth: Truth | None) -> TagSumm
         error_at_localisation_m=loc_fields["err"], final_error_m=fin["err"],
         tracking_rms_error_m=rms,
         inside_claimed_radius=None if loc_fields["err"] is None or loc_fields["r"] is None
-        else bool(loc_fields["err"] <= loc_fields["r"]))
+        else bool(loc_fields["err"] <= loc_fields["r"]),
+        inside_final_radius=None if fin["err"] is None or fin["r"] is None
+        else bool(fin["err"] <= fin["r"]))
 
 
 def planner_timing(flight: FlightData) -> tuple[StageTiming, ...]:

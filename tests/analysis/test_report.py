@@ -80,9 +80,14 @@ def test_errors_match_a_recomputation_against_the_truth_file(demo_log: Path,
         want_final = math.hypot(last["east_m"] - np.interp(last["t"], tt, xs),
                                 last["north_m"] - np.interp(last["t"], tt, ys))
         assert t["final_error_m"] == pytest.approx(want_final, abs=1e-6)
+        assert t["inside_final_radius"] == (want_final <= t["final_radius_m"])
         first = next((r for r in est if r["localised"]), None)
         if first is None:
             assert t["error_at_localisation_m"] is None
+            # the result record leaves the operator the last estimate and its radius
+            left = result["unresolved"][t["tag_id"]]
+            assert (left["east_m"], left["north_m"], left["radius_m"]) == pytest.approx(
+                (last["east_m"], last["north_m"], last["radius_m"]), abs=1e-6)
             continue
         want = math.hypot(first["east_m"] - np.interp(first["t"], tt, xs),
                           first["north_m"] - np.interp(first["t"], tt, ys))
