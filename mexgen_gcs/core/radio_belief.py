@@ -319,6 +319,12 @@ class PulseNoise:
     """R: receiver noise plus model error variance, dB^2."""
     distance_m: float
 
+    def __post_init__(self) -> None:
+        order = np.argsort(self.cells_xy[:, 0], kind="stable") if self.cells_xy.size else None
+        if order is not None:  # sorted east to west: each position scans a band of cells
+            object.__setattr__(self, "cells_xy", np.ascontiguousarray(self.cells_xy[order]))
+            object.__setattr__(self, "n_pulses", np.ascontiguousarray(self.n_pulses[order]))
+
     def at(self, rx_xy: FloatArray) -> FloatArray:
         """R_eff (dB^2) of a pulse at each receiver position rx_xy (..., 2); (...) float64."""
         flat = np.ascontiguousarray(np.asarray(rx_xy, dtype=np.float64).reshape(-1, 2))
@@ -335,29 +341,42 @@ _MAX_NOISE_FACTOR = 1e6
 def _effective_noise(cells_xy: FloatArray, n_pulses: FloatArray, rx_xy: FloatArray,
                      shadow_var: float, noise_var: float, distance_m: float, m: int
                      ) -> FloatArray:
-    """R_eff (P,) of :class:`PulseNoise` at P positions rx_xy (P, 2): the m nearest cells
-    within the correlation cut-off of each, by a partial selection, then :func:`_condition`."""
+    """R_eff (P,) of :class:`PulseNoise` at P positions rx_xy (P, 2) from cells sorted by
+    east: the m nearest within the correlation cut-off of each (a band of cells by east,
+    an insertion list by distance), then :func:`_condition`."""
     n_cells = cells_xy.shape[0]
     marginal = shadow_var + noise_var
     out = np.full(rx_xy.shape[0], marginal)
-    if shadow_var <= 0.0 or n_cells == 0:
+    if shadow_var <= 0.0 or n_cells == 0 or m <= 0:
         return out
     cutoff = -distance_m * math.log(_MIN_CORRELATION)
-    d = np.empty(n_cells)
+    east = np.ascontiguousarray(cells_xy[:, 0])
     sv = np.array([shadow_var])
     nv = np.array([noise_var])
+    best_d = np.empty(m)
+    best_i = np.empty(m, np.intp)
     for p in range(rx_xy.shape[0]):
-        for k in range(n_cells):
-            dx = cells_xy[k, 0] - rx_xy[p, 0]
-            dy = cells_xy[k, 1] - rx_xy[p, 1]
-            d[k] = np.sqrt(dx * dx + dy * dy)
-        near = np.flatnonzero(d < cutoff)
-        if near.size == 0:
+        x, y = rx_xy[p, 0], rx_xy[p, 1]
+        count = 0
+        for k in range(np.searchsorted(east, x - cutoff), np.searchsorted(east, x + cutoff)):
+            dx = cells_xy[k, 0] - x
+            dy = cells_xy[k, 1] - y
+            d = np.sqrt(dx * dx + dy * dy)
+            if d >= cutoff or (count == m and d >= best_d[m - 1]):
+                continue
+            j = min(count, m - 1)  # insert, dropping the farthest when full
+            while j > 0 and best_d[j - 1] > d:
+                best_d[j] = best_d[j - 1]
+                best_i[j] = best_i[j - 1]
+                j -= 1
+            best_d[j] = d
+            best_i[j] = k
+            count = min(count + 1, m)
+        if count == 0:
             continue
-        if near.size > m:
-            near = near[np.argsort(d[near])[:m]]
-        beta, r2 = _condition(np.ascontiguousarray(cells_xy[near]),
-                              np.ascontiguousarray(n_pulses[near]), d[near], sv, nv, distance_m)
+        idx = best_i[:count]
+        beta, r2 = _condition(cells_xy[idx], n_pulses[idx], best_d[:count].copy(), sv, nv,
+                              distance_m)
         keep = 1.0 - np.sum(beta[0])
         out[p] = min(r2[0] / max(keep * keep, 1e-300), _MAX_NOISE_FACTOR * marginal)
     return out

@@ -246,16 +246,18 @@ def _coverage_table(rows: Rows, prefix: str) -> list[str]:
     """The share of localised tags inside the radius they claimed, per model and method."""
     if not any(r.get(f"{prefix}radii_m", "") for r in rows):
         return []  # format 2 and earlier: no claimed radii stored
-    head = ["| Model | Method | Tags | Inside | Coverage [95 % CI] | Error median (m) | "
-            "Error 95th pct (m) | Error max (m) | Claimed radius median (m) |",
-            "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    def head(radius: str) -> list[str]:
+        return ["| Model | Method | Tags | Inside | Coverage [95 % CI] | Error median (m) | "
+                f"Error 95th pct (m) | Error max (m) | {radius} median (m) |",
+                "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+
     out = ["Coverage of the claim: localised tags (all runs, failed ones included) whose true "
-           "position lay inside the 95 % radius they claimed when localised.", "", *head,
-           *_coverage_rows(rows, prefix)]
+           "position lay inside the 95 % radius they claimed when localised.", "",
+           *head("Claimed radius"), *_coverage_rows(rows, prefix)]
     if not prefix and any(r.get("final_radii_m", "") for r in rows):  # format 4
         out += ["", "Coverage of the final estimate: every tag at the end of its run, localised "
                 "or not (the estimate an operator is left with), inside its 95 % radius.", "",
-                *head, *_coverage_rows(rows, "final_")]
+                *head("Radius"), *_coverage_rows(rows, "final_")]
     return out
 
 

@@ -197,3 +197,27 @@ def test_the_planner_noise_follows_the_filters_roughness_and_memory():
     classic = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(),
                               np.random.default_rng(0))
     assert classic.planning_noise() is None
+
+
+def test_pulse_noise_is_the_vecchia_conditioning_on_the_nearest_cells():
+    """The kernel's band scan and insertion list against a brute-force numpy reference."""
+    rng = np.random.default_rng(5)
+    cells = rng.uniform(-500, 500, (300, 2))
+    n = rng.integers(1, 5, 300).astype(float)
+    s, r, dist = 16.0, 15.25, 50.0
+    rx = rng.uniform(-700, 700, (200, 2))
+    ref = []
+    for p in rx:
+        d = np.hypot(*(cells - p).T)
+        idx = np.flatnonzero(d < -dist * math.log(0.02))
+        if idx.size == 0:
+            ref.append(s + r)
+            continue
+        idx = idx[np.argsort(d[idx])[:SHADOW_NEIGHBOURS]]
+        c = cells[idx]
+        cmat = s * np.exp(-np.hypot(*(c[:, None] - c[None, :]).transpose(2, 0, 1)) / dist)
+        cvec = s * np.exp(-d[idx] / dist)
+        beta = np.linalg.solve(cmat + np.diag(r / n[idx]), cvec)
+        ref.append((s + r - cvec @ beta) / (1.0 - beta.sum()) ** 2)
+    got = PulseNoise(cells, n, s, r, dist).at(rx)
+    np.testing.assert_allclose(got, ref, rtol=1e-10)
