@@ -295,19 +295,19 @@ def _condition(cells_xy: FloatArray, n_pulses: FloatArray, d_new: FloatArray,
 @dataclass(frozen=True, slots=True, eq=False)
 class PulseNoise:
     """What one more pulse at a receiver position would tell the planner, given what the
-    filter has heard (its :class:`ShadowMemory`) and its most likely roughness level.
+    filter has heard (its :class:`ShadowMemory`) under its most likely roughness level.
 
-    A pulse at ``u`` is conditioned on the memory's nearest cells (as the filter will condition
-    it): its power is ``z~ = z - sum beta_j z_j`` with variance ``r^2``, and the difference it
-    makes between two candidate tag positions is ``(1 - sum beta_j)`` of the difference in their
-    power at ``u`` (the neighbours' powers differ about as much, the field being smooth there).
-    So for the planner a pulse at u is one with the noise variance::
+    A pulse at ``u`` will be conditioned on the memory's nearest cells, as the filter
+    conditions it: its power enters as ``z~ = z - sum beta_j z_j`` with variance ``r^2``, so a
+    candidate tag position ``x`` predicts ``P(x, u) - sum beta_j P(x, u_j)``. The planner
+    takes the neighbours' part at their beta-weighted centroid ``u_c``::
 
-        R_eff(u) = r^2(u) / (1 - sum beta_j(u))^2
+        P~(x, u) = P(x, u) - c P(x, u_c),   c = sum beta_j,   noise variance r^2(u)
 
-    which is ``sigma_s^2 + R`` (shadowing, receiver noise and model error) far from every
-    cell and grows without bound where the filter has already listened: the planner looks for
-    new places, as the filter values them, instead of circling where the power is known.
+    Far from every cell ``c = 0`` and ``r^2 = sigma_s^2 + R`` (shadowing, receiver noise and
+    model error); where the filter has listened the pulse repeats what it heard (``u_c`` near
+    ``u``, c near 1: the difference it makes between candidate positions vanishes), while a
+    pass beside earlier ones, near the tag where the power changes fast, still tells.
     """
 
     cells_xy: FloatArray
@@ -325,30 +325,29 @@ class PulseNoise:
             object.__setattr__(self, "cells_xy", np.ascontiguousarray(self.cells_xy[order]))
             object.__setattr__(self, "n_pulses", np.ascontiguousarray(self.n_pulses[order]))
 
-    def at(self, rx_xy: FloatArray) -> FloatArray:
-        """R_eff (dB^2) of a pulse at each receiver position rx_xy (..., 2); (...) float64."""
+    def conditioning(self, rx_xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """(r^2 (...), c (...), u_c (..., 2)) of a pulse at each receiver position rx_xy
+        (..., 2); u_c is rx where c = 0."""
+        shape = np.shape(rx_xy)[:-1]
         flat = np.ascontiguousarray(np.asarray(rx_xy, dtype=np.float64).reshape(-1, 2))
-        out = _effective_noise(self.cells_xy, self.n_pulses, flat, self.shadow_var,
-                               self.noise_var, self.distance_m, SHADOW_NEIGHBOURS)
-        return out.reshape(np.shape(rx_xy)[:-1])
-
-
-_MAX_NOISE_FACTOR = 1e6
-"""R_eff is at most this multiple of the marginal variance (a pulse worth nothing)."""
+        r2, c, centre = _pulse_conditioning(self.cells_xy, self.n_pulses, flat, self.shadow_var,
+                                            self.noise_var, self.distance_m, SHADOW_NEIGHBOURS)
+        return r2.reshape(shape), c.reshape(shape), centre.reshape(*shape, 2)
 
 
 @kernel
-def _effective_noise(cells_xy: FloatArray, n_pulses: FloatArray, rx_xy: FloatArray,
-                     shadow_var: float, noise_var: float, distance_m: float, m: int
-                     ) -> FloatArray:
-    """R_eff (P,) of :class:`PulseNoise` at P positions rx_xy (P, 2) from cells sorted by
+def _pulse_conditioning(cells_xy: FloatArray, n_pulses: FloatArray, rx_xy: FloatArray,
+                        shadow_var: float, noise_var: float, distance_m: float, m: int
+                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(r^2, c, u_c) of :class:`PulseNoise` at P positions rx_xy (P, 2) from cells sorted by
     east: the m nearest within the correlation cut-off of each (a band of cells by east,
     an insertion list by distance), then :func:`_condition`."""
     n_cells = cells_xy.shape[0]
-    marginal = shadow_var + noise_var
-    out = np.full(rx_xy.shape[0], marginal)
+    r2_out = np.full(rx_xy.shape[0], shadow_var + noise_var)
+    c_out = np.zeros(rx_xy.shape[0])
+    centre = rx_xy.copy()
     if shadow_var <= 0.0 or n_cells == 0 or m <= 0:
-        return out
+        return r2_out, c_out, centre
     cutoff = -distance_m * math.log(_MIN_CORRELATION)
     east = np.ascontiguousarray(cells_xy[:, 0])
     sv = np.array([shadow_var])
@@ -377,6 +376,15 @@ def _effective_noise(cells_xy: FloatArray, n_pulses: FloatArray, rx_xy: FloatArr
         idx = best_i[:count]
         beta, r2 = _condition(cells_xy[idx], n_pulses[idx], best_d[:count].copy(), sv, nv,
                               distance_m)
-        keep = 1.0 - np.sum(beta[0])
-        out[p] = min(r2[0] / max(keep * keep, 1e-300), _MAX_NOISE_FACTOR * marginal)
-    return out
+        c = np.sum(beta[0])
+        r2_out[p] = r2[0]
+        if abs(c) > 1e-9:  # else no neighbours' part (and no centroid to speak of)
+            c_out[p] = c
+            cx = 0.0
+            cy = 0.0
+            for j in range(count):
+                cx += beta[0, j] * cells_xy[idx[j], 0]
+                cy += beta[0, j] * cells_xy[idx[j], 1]
+            centre[p, 0] = cx / c
+            centre[p, 1] = cy / c
+    return r2_out, c_out, centre

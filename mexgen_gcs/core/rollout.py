@@ -181,12 +181,14 @@ def rollout_gains(
     value = np.zeros(shape[:-1])
     offset_grid = none if offset is None else offset.reshape(n_tags, n_pad)
     exponent_grid = none if exponent is None else exponent.reshape(n_tags, n_pad)
-    inv_2r = _inverse_noise(beliefs, paths, radio)
+    inv_2r, nb_c, nb_xy = _pulse_conditioning(beliefs, paths, radio)
+    nb_power = ws.get("nb_power", grid_shape) if nb_c.size else none[None]
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
         t2 = clock()
         grid_step(xy[k], rx[k], yaw, offset_grid, exponent_grid, params, tables.log_pd,
-                  power, log_pd, index)
+                  nb_c[k] if nb_c.size else none, nb_xy[k] if nb_c.size else none[None],
+                  power, log_pd, index, nb_power)
         t3 = clock()
         view = BeliefView(
             weights=w,
@@ -204,7 +206,8 @@ def rollout_gains(
         t4 = clock()
         # 3. update and 4. reward (core.rollout_kernels)
         update_step(power, log_pd, index, meas.z_db, meas.p_detect, log_w, w, log_total,
-                    tables.update, inv_2r[k], alpha, pooled, discount**k, log_w_next, w_next,
+                    tables.update, inv_2r[k], nb_c[k] if nb_c.size else none, nb_power, alpha,
+                    pooled, discount**k, log_w_next, w_next,
                     log_total_next, value)
         log_w, log_w_next = log_w_next, log_w
         w, w_next = w_next, w
@@ -219,16 +222,26 @@ def rollout_gains(
     return value.mean(axis=2)
 
 
-def _inverse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray, radio: RadioModel
-                   ) -> FloatArray:
-    """1 / (2 R) per look-ahead step, tag and action, (H, T, A): R the receiver noise, or
-    what a pulse there would tell the tag's filter (:class:`core.radio_belief.PulseNoise`)."""
-    out = np.full((paths.shape[0], len(beliefs), paths.shape[1]), 0.5 / radio.noise_var)
-    for i, b in enumerate(beliefs):
-        noise = getattr(b, "noise", None)
+def _pulse_conditioning(beliefs: Sequence[PlanningBelief], paths: FloatArray,
+                        radio: RadioModel) -> tuple[FloatArray, Float32Array, Float32Array]:
+    """Per look-ahead step, tag and action: 1 / (2 R) (H, T, A), R the receiver noise or the
+    variance of a pulse there given the filter's shadowing neighbours, and the neighbours'
+    weight (H, T, A) and centroid (H, T, A, 2) (:class:`core.radio_belief.PulseNoise`); the
+    last two empty when no tag's filter has a shadowing memory."""
+    steps, n_act = paths.shape[:2]
+    inv_2r = np.full((steps, len(beliefs), n_act), 0.5 / radio.noise_var)
+    noises = [getattr(b, "noise", None) for b in beliefs]
+    if all(x is None for x in noises):
+        return inv_2r, np.zeros((0, 0, 0), np.float32), np.zeros((0, 0, 0, 2), np.float32)
+    nb_c = np.zeros((steps, len(beliefs), n_act), np.float32)
+    nb_xy = np.zeros((steps, len(beliefs), n_act, 2), np.float32)
+    for i, noise in enumerate(noises):
         if noise is not None:
-            out[:, i, :] = 0.5 / noise.at(paths)
-    return out
+            r2, c, centre = noise.conditioning(paths)
+            inv_2r[:, i] = 0.5 / r2
+            nb_c[:, i] = c
+            nb_xy[:, i] = centre
+    return inv_2r, nb_c, nb_xy
 
 
 def _radio_draws(beliefs: Sequence[PlanningBelief], n: int, n_pad: int, radio: RadioModel

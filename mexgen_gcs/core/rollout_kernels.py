@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from mexgen_gcs.core.jit import LANES, exp32, kernel, log32, max_lanes
+from mexgen_gcs.core.jit import LANES, exp32, inline, kernel, log32, max_lanes
 from mexgen_gcs.core.radio import distance2_and_gain
 
 Float32Array = NDArray[np.float32]
@@ -35,6 +35,29 @@ Int32Array = NDArray[np.int32]
 
 _F = np.float32
 _INV_LN10 = 1.0 / math.log(10.0)
+
+
+@inline
+def _powers(x: Float32Array, y: Float32Array, ex: float, ey: float, dz2: float, ks: float,
+            kc: float, half_fb: float, min2: float, log10_d0: float, p0: float,
+            c_slope: float, c_const: float, exponent: Float32Array, offset_db: Float32Array,
+            t: int, out: Float32Array) -> None:
+    """Noiseless power (float32) of every particle (x, y) of tag t from the receiver at
+    (ex, ey) with squared height dz2 and antenna terms ks, kc: see :func:`grid_step`."""
+    n = x.shape[0]
+    if exponent.shape[0] > 0:  # p0 - 5 n_i (log10(d^2) - 2 log10(d0)) + gain
+        for i in range(n):
+            d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+            l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
+            out[i] = (l10 - _F(2.0) * log10_d0) * (_F(-5.0) * exponent[t, i]) + p0 + gain
+    else:
+        for i in range(n):
+            d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
+            l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
+            out[i] = l10 * c_slope + c_const + gain
+    if offset_db.shape[0] > 0:
+        for i in range(n):
+            out[i] += offset_db[t, i]
 
 
 @kernel
@@ -46,9 +69,12 @@ def grid_step(
     exponent: Float32Array,
     params: FloatArray,
     table_log_pd: Float32Array,
+    nb_c: Float32Array,
+    nb_xy: Float32Array,
     power: Float32Array,
     log_pd: Float32Array,
     index: Int32Array,
+    nb_power: Float32Array,
 ) -> None:
     """Noiseless power, table entry and log pD of every particle from every pose, in place.
 
@@ -56,9 +82,12 @@ def grid_step(
     east/north/up; yaw_rad: (A,); offset_db, exponent: (T, N) per-particle power offset
     (added to P0) and path-loss exponent (replacing the model's), or empty (0, 0) arrays
     for the model's; params: :func:`grid_params`; table_log_pd: the detection table's
-    log pD. Writes power, log_pd, index: (T, A, N).
+    log pD. Writes power, log_pd, index: (T, A, N). nb_c (T, A) and nb_xy (T, A, 2), or
+    empty: the shadowing neighbours' weight and centroid of each tag's pulse from each pose
+    (:class:`core.radio_belief.PulseNoise`); where nb_c != 0 nb_power (T, A, N) receives the
+    power from the centroid (same height and heading).
     """
-    n_tags, n = xy.shape[0], xy.shape[2]
+    n_tags = xy.shape[0]
     p0, n_model, log10_d0, half_fb, min2 = (_F(params[0]), _F(params[1]), _F(params[2]),
                                             _F(params[3]), _F(params[4]))
     inv_step, tab_offset = _F(params[5]), _F(params[6])
@@ -68,29 +97,20 @@ def grid_step(
     for t in range(n_tags):
         x, y = xy[t, 0], xy[t, 1]
         for a in range(rx.shape[0]):
-            ex, ey = rx[a, 0], rx[a, 1]
             dz2 = rx[a, 2] * rx[a, 2]
             ks, kc = half_fb * _F(math.sin(yaw_rad[a])), half_fb * _F(math.cos(yaw_rad[a]))
             pw, ix, lp = power[t, a], index[t, a], log_pd[t, a]
-            # three simple loops, each of which LLVM vectorises, rather than one that it
-            # does not (the table lookup is a gather)
-            if exponent.shape[0] > 0:  # p0 - 5 n_i (log10(d^2) - 2 log10(d0)) + gain
-                for i in range(n):
-                    d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
-                    l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
-                    pw[i] = (l10 - _F(2.0) * log10_d0) * (_F(-5.0) * exponent[t, i]) + p0 + gain
-            else:
-                for i in range(n):
-                    d2, gain = distance2_and_gain(x[i] - ex, y[i] - ey, dz2, min2, ks, kc, half_fb)
-                    l10 = log32(d2) * _F(_INV_LN10)  # log10(distance^2)
-                    pw[i] = l10 * c_slope + c_const + gain
-            if offset_db.shape[0] > 0:
-                for i in range(n):
-                    pw[i] += offset_db[t, i]
-            for i in range(n):
+            # simple loops, each of which LLVM vectorises, rather than one that it does not
+            # (the table lookup is a gather)
+            _powers(x, y, rx[a, 0], rx[a, 1], dz2, ks, kc, half_fb, min2, log10_d0, p0,
+                    c_slope, c_const, exponent, offset_db, t, pw)
+            for i in range(x.shape[0]):
                 ix[i] = min(max(np.int32(pw[i] * inv_step + tab_offset), np.int32(0)), last)
-            for i in range(n):
+            for i in range(x.shape[0]):
                 lp[i] = table_log_pd[ix[i]]
+            if nb_c.shape[0] > 0 and nb_c[t, a] != _F(0.0):
+                _powers(x, y, nb_xy[t, a, 0], nb_xy[t, a, 1], dz2, ks, kc, half_fb, min2,
+                        log10_d0, p0, c_slope, c_const, exponent, offset_db, t, nb_power[t, a])
 
 
 def grid_params(p0_db: float, path_loss_exponent: float, d0_m: float, front_back_db: float,
@@ -113,6 +133,8 @@ def update_step(
     log_total: FloatArray,
     tables: Float32Array,
     inv_2r: FloatArray,
+    nb_c: Float32Array,
+    nb_power: Float32Array,
     alpha: float,
     pooled: bool,
     discount_k: float,
@@ -128,7 +150,10 @@ def update_step(
     probability; log_w, w, log_total: (T, A, R, N), (T, A, R, N), (T, A, R) the predicted
     belief (max-shifted, see the module); tables: (3, K) the detection table's log(1 - pD) -
     log pD, 1 - pD and (1 - pD)^alpha; inv_2r (T, A) = 1 / (2 R), R the noise of a pulse from
-    the row's pose. Writes the carried belief to
+    the row's pose; nb_c (T, A) and nb_power (T, A, N) from :func:`grid_step`, or empty: where
+    nb_c != 0 the likelihood is of the pulse conditioned on the shadowing neighbours, the
+    particle's power less nb_c x its power from their centroid against z less nb_c x that
+    power's mean under the row's predicted weights. Writes the carried belief to
     out_log_w, out_w, out_log_total and adds ``discount_k`` x the row's gain to value (T, A,
     R). ``pooled``: the outcome rule (core.rollout). A row whose outcome nothing explains
     (every likelihood -inf or NaN) keeps its prior. Entries with zero weight stay zero.
@@ -153,7 +178,25 @@ def update_step(
                 c_gap = _F(1.0) - p_lik
                 lw, ow, e = log_w[t, a, r], out_log_w[t, a, r], out_w[t, a, r]
                 pw, lp, ix = power[t, a], log_pd[t, a], index[t, a]
-                if c_gap != _F(0.0):
+                c_nb = nb_c[t, a] if nb_c.shape[0] > 0 else _F(0.0)
+                if c_nb != _F(0.0):  # conditioned on the neighbours: z~ - P~ = z - P - c (Q - q)
+                    qn = nb_power[t, a]
+                    wn = w[t, a, r]
+                    sq = _F(0.0)
+                    sw = _F(0.0)
+                    for i in range(n):
+                        sq += wn[i] * qn[i]
+                        sw += wn[i]
+                    z = z - c_nb * (sq / sw)
+                    if c_gap != _F(0.0):
+                        for i in range(n):
+                            d = z - (pw[i] - c_nb * qn[i])
+                            ow[i] = lp[i] + c_quad * d * d + lw[i] + c_gap * tables[0, ix[i]]
+                    else:
+                        for i in range(n):
+                            d = z - (pw[i] - c_nb * qn[i])
+                            ow[i] = lp[i] + c_quad * d * d + lw[i]
+                elif c_gap != _F(0.0):
                     for i in range(n):
                         d = z - pw[i]
                         ow[i] = lp[i] + c_quad * d * d + lw[i] + c_gap * tables[0, ix[i]]

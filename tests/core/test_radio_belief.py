@@ -164,24 +164,28 @@ def test_shadow_conditioning_solves_the_gaussian_process_equations():
 
 
 def test_a_pulse_where_the_filter_has_listened_tells_the_planner_little():
-    """R_eff = r^2 / (1 - sum beta)^2: the marginal sigma_s^2 + R far from every cell, the
-    one-cell formula beside a single cell, and growing as the cell fills and as cells
-    surround the place; without shadowing the marginal everywhere."""
+    """Far from every cell: the marginal sigma_s^2 + R and no neighbours' part; beside one
+    cell: the one-cell Gaussian-process formulas with the cell as centroid; the weight c
+    grows towards 1 as the cell fills; without shadowing nothing is conditioned."""
     s, r, big = 16.0, 15.25, 31.25
-    one = PulseNoise(np.array([[0.0, 0.0]]), np.array([1.0]), s, r, 50.0)
-    far, at = one.at(np.array([[500.0, 0.0], [0.0, 0.0]]))
-    assert far == pytest.approx(big)
-    beta = s / (s + r)
-    assert at == pytest.approx((big - s * beta) / (1.0 - beta) ** 2)
-    full = PulseNoise(np.array([[0.0, 0.0]]), np.array([20.0]), s, r, 50.0).at(np.zeros(2))
+    one = PulseNoise(np.array([[10.0, 0.0]]), np.array([1.0]), s, r, 50.0)
+    r2, c, centre = one.conditioning(np.array([[500.0, 0.0], [0.0, 0.0]]))
+    assert r2[0] == pytest.approx(big) and c[0] == 0.0 and tuple(centre[0]) == (500.0, 0.0)
+    rho = math.exp(-10.0 / 50.0)
+    beta = s * rho / (s + r)
+    assert c[1] == pytest.approx(beta) and r2[1] == pytest.approx(big - s * rho * beta)
+    np.testing.assert_allclose(centre[1], (10.0, 0.0))
+    _, c_full, _ = PulseNoise(np.array([[10.0, 0.0]]), np.array([20.0]), s, r, 50.0
+                              ).conditioning(np.zeros(2))
+    assert beta < c_full < rho
     x = np.linspace(-100.0, 100.0, 11)
     grid = np.array([(a, b) for a in x for b in x])
-    ringed = PulseNoise(grid, np.ones(len(grid)), s, r, 50.0).at(np.array([5.0, 5.0]))
-    assert big < at < full and at < ringed
-    smooth = PulseNoise(grid, np.ones(len(grid)), 0.0, r, 50.0)
-    np.testing.assert_allclose(smooth.at(grid[:5]), r)
-    # shapes: (..., 2) -> (...)
-    assert one.at(np.zeros((3, 4, 2))).shape == (3, 4)
+    smooth = PulseNoise(grid, np.ones(len(grid)), 0.0, r, 50.0).conditioning(grid[:5])
+    np.testing.assert_allclose(smooth[0], r)
+    assert np.all(smooth[1] == 0.0)
+    # shapes: (..., 2) -> (...), (...), (..., 2)
+    assert [a.shape for a in one.conditioning(np.zeros((3, 4, 2)))] == [(3, 4), (3, 4),
+                                                                        (3, 4, 2)]
 
 
 def test_the_planner_noise_follows_the_filters_roughness_and_memory():
@@ -191,9 +195,10 @@ def test_the_planner_noise_follows_the_filters_roughness_and_memory():
     noise = f.planning_noise()
     assert noise is not None and noise.cells_xy.shape[0] == f.shadow_memory.count > 0
     assert noise.shadow_var == 16.0 and noise.noise_var == RADIO.noise_var + 9.0
-    heard = noise.at(noise.cells_xy[:20])
-    assert np.all(heard > 2.0 * (16.0 + noise.noise_var))  # where it has listened
-    assert noise.at(TAG + 2000.0) == pytest.approx(16.0 + noise.noise_var)
+    r2, c, _ = noise.conditioning(noise.cells_xy[:20])  # where it has listened
+    assert np.all(r2 < 16.0 + noise.noise_var) and np.all(c > 0.5)
+    far = noise.conditioning(TAG + 2000.0)
+    assert far[0] == pytest.approx(16.0 + noise.noise_var) and far[1] == 0.0
     classic = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(),
                               np.random.default_rng(0))
     assert classic.planning_noise() is None
@@ -211,13 +216,18 @@ def test_pulse_noise_is_the_vecchia_conditioning_on_the_nearest_cells():
         d = np.hypot(*(cells - p).T)
         idx = np.flatnonzero(d < -dist * math.log(0.02))
         if idx.size == 0:
-            ref.append(s + r)
+            ref.append((s + r, 0.0, *p))
             continue
         idx = idx[np.argsort(d[idx])[:SHADOW_NEIGHBOURS]]
         c = cells[idx]
         cmat = s * np.exp(-np.hypot(*(c[:, None] - c[None, :]).transpose(2, 0, 1)) / dist)
         cvec = s * np.exp(-d[idx] / dist)
         beta = np.linalg.solve(cmat + np.diag(r / n[idx]), cvec)
-        ref.append((s + r - cvec @ beta) / (1.0 - beta.sum()) ** 2)
-    got = PulseNoise(cells, n, s, r, dist).at(rx)
-    np.testing.assert_allclose(got, ref, rtol=1e-10)
+        ref.append((s + r - cvec @ beta, beta.sum(), *(beta @ c / beta.sum())))
+    r2, c, centre = PulseNoise(cells, n, s, r, dist).conditioning(rx)
+    ref = np.array(ref)
+    np.testing.assert_allclose(r2, ref[:, 0], rtol=1e-10)
+    np.testing.assert_allclose(c, ref[:, 1], rtol=1e-10, atol=1e-12)
+    has = ref[:, 1] != 0.0
+    np.testing.assert_allclose(centre[has], ref[has, 2:], rtol=1e-9)
+    np.testing.assert_allclose(centre[~has], rx[~has])

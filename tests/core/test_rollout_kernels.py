@@ -20,17 +20,20 @@ from mexgen_gcs.core.workspace import Workspace
 NONE = np.zeros((0, 0), np.float32)
 
 
-def _grid(radio, xy, rx, yaw, offset=NONE, exponent=NONE):
+def _grid(radio, xy, rx, yaw, offset=NONE, exponent=NONE, nb_c=NONE, nb_xy=NONE[None]):
     table = detection_table(radio)
     t, n = xy.shape[0], xy.shape[2]
     a = rx.shape[0]
     power = np.empty((t, a, n), np.float32)
     log_pd = np.empty_like(power)
     index = np.empty((t, a, n), np.int32)
+    nb_power = np.full((t, a, n), np.nan, np.float32)
     params = grid_params(radio.p0_db, radio.path_loss_exponent, radio.d0_m, radio.front_back_db,
                          radio.min_distance_m, table.inv_step, table.offset)
-    grid_step(xy, rx, yaw, offset, exponent, params, table.arrays(0.1).log_pd, power, log_pd,
-              index)
+    grid_step(xy, rx, yaw, offset, exponent, params, table.arrays(0.1).log_pd, nb_c, nb_xy,
+              power, log_pd, index, nb_power)
+    if nb_c.size:
+        return power, log_pd, index, nb_power
     return power, log_pd, index
 
 
@@ -78,6 +81,19 @@ def test_grid_with_per_particle_offsets_and_exponents():
                                     yaw[None, :, None].astype(np.float64))
     expected = radio.p0_db + offset[:, None] + exponent[:, None] * log_term + gain
     np.testing.assert_allclose(power, expected, atol=2e-4)
+    # the power from the shadowing neighbours' centroid, where they have weight
+    nb_c = np.array([[0.0, 0.7, 0.0, 1.0, 0.3]] * 2, np.float32)
+    nb_xy = (rx[None, :, :2] + rng.uniform(-80, 80, (2, rx.shape[0], 2))).astype(np.float32)
+    again, _, _, nb_power = _grid(radio, xy, rx, yaw, offset, exponent, nb_c, nb_xy)
+    np.testing.assert_array_equal(again, power)
+    centre = np.concatenate([nb_xy, rx[None, :, 2:].repeat(2, 0)], axis=-1)
+    log_term, gain = radio.geometry(xy.transpose(0, 2, 1)[:, None].astype(np.float64),
+                                    centre[:, :, None].astype(np.float64),
+                                    yaw[None, :, None].astype(np.float64))
+    expected = radio.p0_db + offset[:, None] + exponent[:, None] * log_term + gain
+    has = nb_c != 0
+    np.testing.assert_allclose(nb_power[has], expected[has], atol=2e-4)
+    assert np.all(np.isnan(nb_power[~has]))  # not computed where the weight is 0
 
 
 def test_float32_exp_and_log_are_float32_accurate():
@@ -110,9 +126,10 @@ def _noise(radio, shape):
     return radio.noise_var * (1.0 + np.arange(shape[0] * shape[1]).reshape(shape[:2]) % 3)
 
 
-def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled):
+def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled, nb=None):
     """core.rollout's equations in float64 numpy: per row (T, A, R) the carried normalised
-    log-weights and the gain."""
+    log-weights and the gain. nb: (c (T, A), q (T, A, N)) the shadowing neighbours' weight
+    and the power from their centroid (core.radio_belief.PulseNoise)."""
     noise = _noise(radio, log_w.shape)
     pd = np.exp(log_pd.astype(np.float64))
     miss = np.exp(table.log_miss(power).astype(np.float64))
@@ -121,7 +138,11 @@ def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled):
     gains = np.empty(log_w.shape[:-1])
     for t, a, r in np.ndindex(*log_w.shape[:-1]):
         pr, pt = prior[t, a, r], float(p[t, a, r])
-        det = np.log(pd[t, a]) - (z[t, a, r] - power[t, a]) ** 2 / (2 * noise[t, a])
+        zt, pw = z[t, a, r], power[t, a].astype(np.float64)
+        if nb is not None and nb[0][t, a] != 0.0:  # z~ = z - c E[q], P~ = P - c q
+            c, q = float(nb[0][t, a]), nb[1][t, a].astype(np.float64)
+            zt, pw = zt - c * (np.exp(pr) @ q), pw - c * q
+        det = np.log(pd[t, a]) - (zt - pw) ** 2 / (2 * noise[t, a])
         if pooled or pt == 0.0:
             ll = pt * det + (1 - pt) * np.log(miss[t, a]) if pt < 1 else det
             post = pr + ll
@@ -139,35 +160,44 @@ def _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled):
     return out_lw, gains
 
 
-def _run_update(power, log_pd, index, table, z, p, log_w, radio, alpha, pooled):
+def _run_update(power, log_pd, index, table, z, p, log_w, radio, alpha, pooled, nb=None):
     shape = log_w.shape
+    nb_c, nb_power = (NONE, NONE[None]) if nb is None else nb
     lw32 = (log_w - log_w.max(-1, keepdims=True)).astype(np.float32)
     w32 = np.exp(lw32)
     log_total = logsumexp(lw32)
     out_lw, out_w = np.empty(shape, np.float32), np.empty(shape, np.float32)
     out_total, value = np.empty(shape[:-1]), np.zeros(shape[:-1])
     update_step(power, log_pd, index, z.astype(np.float32), p.astype(np.float32), lw32, w32,
-                log_total, table.arrays(alpha).update, 0.5 / _noise(radio, shape), alpha, pooled,
-                1.0, out_lw, out_w, out_total, value)
+                log_total, table.arrays(alpha).update, 0.5 / _noise(radio, shape), nb_c,
+                nb_power, alpha, pooled, 1.0, out_lw, out_w, out_total, value)
     return out_lw, out_w, out_total, value
 
 
+@pytest.mark.parametrize("conditioned", [False, True])
 @pytest.mark.parametrize("pooled", [True, False])
 @pytest.mark.parametrize("alpha", [0.1, 0.5, 2.0])
-def test_update_is_bayes_rule_and_the_gain_is_the_renyi_divergence(pooled, alpha):
+def test_update_is_bayes_rule_and_the_gain_is_the_renyi_divergence(pooled, alpha, conditioned):
     radio = RadioModel()
     table = detection_table(radio)
     rng = np.random.default_rng(3)
     xy, rx, yaw = _poses(rng, t=2, a=3, n=200)
     xy *= 0.2  # within detection range
-    power, log_pd, index = _grid(radio, xy, rx, yaw)
+    nb = None
+    if conditioned:  # some rows conditioned on shadowing neighbours, some not
+        nb_c = np.array([[0.0, 0.6, 0.95], [0.3, 0.0, 1.02]], np.float32)
+        nb_xy = (rx[None, :, :2] + rng.uniform(-60, 60, (2, 3, 2))).astype(np.float32)
+        power, log_pd, index, nb_power = _grid(radio, xy, rx, yaw, NONE, NONE, nb_c, nb_xy)
+        nb = (nb_c, np.nan_to_num(nb_power))
+    else:
+        power, log_pd, index = _grid(radio, xy, rx, yaw)
     n_roll = 4  # rows share their action's grid, as MC rollouts do
     z = rng.uniform(-60.0, -35.0, (2, 3, n_roll))
     p = np.array([1.0, 0.0, 0.3, 0.8])[None, None, :] * np.ones((2, 3, 1))
     log_w = np.log(rng.dirichlet(np.ones(200) * 0.5, size=(2, 3, n_roll)))
     out_lw, out_w, out_total, value = _run_update(power, log_pd, index, table, z, p, log_w,
-                                                  radio, alpha, pooled)
-    ref_lw, ref_gain = _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled)
+                                                  radio, alpha, pooled, nb)
+    ref_lw, ref_gain = _reference(power, log_pd, table, z, p, log_w, radio, alpha, pooled, nb)
     got = out_lw.astype(np.float64) - out_total[..., None]
     np.testing.assert_allclose(got, ref_lw, atol=2e-3)
     np.testing.assert_allclose(value, ref_gain, rtol=2e-3, atol=1e-5)
