@@ -159,9 +159,10 @@ def _plan_step(flight: FlightData, core: MissionCore, planner: MissionPlanner,
     beliefs = []
     for tid in targets:
         f = core.filters[tid]
-        states, modes, offset, exponent = f.sample_planning(core.planning_particles, core.rng)
+        states, modes, offset, exponent, cov = f.sample_planning(core.planning_particles,
+                                                                 core.rng)
         beliefs.append(TagBelief(tid, states, modes, core.motion, float(f.existence), offset,
-                                 exponent, f.planning_noise()))
+                                 exponent, f.planning_noise(), cov))
     request = PlanRequest(rec.t, vehicle, tuple(beliefs))
     method_rng, = rng.spawn(1)
     replayed = planner.plan(request, rec.method, rng)

@@ -321,11 +321,19 @@ class BernoulliFilter:
         return self.states[idx], self.modes[idx]
 
     def sample_planning(self, n: int, rng: np.random.Generator
-                        ) -> tuple[FloatArray, ModeArray, FloatArray | None, FloatArray | None]:
-        """n equal-weight particles for the planner with, when the radio is uncertain, one
-        draw of each particle's (offset dB, exponent) from its Gaussian: states (n, 4), modes
-        (n,), offsets (n,) | None, exponents (n,) | None. The shadowing is not drawn: the
-        planner counts it in each pulse's noise (:meth:`planning_noise`)."""
+                        ) -> tuple[FloatArray, ModeArray, FloatArray | None, FloatArray | None,
+                                   FloatArray | None]:
+        """n equal-weight particles for the planner with, when the radio is uncertain, each
+        particle's mean (offset dB, exponent) and the particles' mean covariance of them:
+        states (n, 4), modes (n,), offsets (n,) | None, exponents (n,) | None, covariance (3,)
+        ``[bb, bn, nn]`` | None.
+
+        Means, not draws: the filter keeps the unknowns as a Gaussian per particle and moves
+        particle weights only by where the tag is, so the planner's weights must too. With a
+        draw per particle, a pulse anywhere (far from every tag, where it says nothing about
+        the position) told particles apart by their drawn offsets, and the planner flew away to
+        learn them. Their uncertainty enters each pulse's noise instead (:mod:`core.rollout`).
+        The shadowing is the planner's noise too (:meth:`planning_noise`)."""
         if n < 1:
             raise EstimationError(f"cannot sample {n} particles; ask for at least 1")
         idx = systematic_resample(self.log_w, n, rng)
@@ -333,17 +341,10 @@ class BernoulliFilter:
         if belief is None:
             offset = None if self.tag_prior.offset_db == 0.0 else np.full(
                 n, self.tag_prior.offset_db)
-            return self.states[idx], self.modes[idx], offset, None
-        mu, c = belief.mean[idx], belief.cov[idx]
-        g = rng.standard_normal((n, 2))
-        # Cholesky of [[bb, bn], [bn, nn]]
-        l11 = np.sqrt(np.maximum(c[:, 0], 0.0))
-        l21 = np.divide(c[:, 1], l11, out=np.zeros(n), where=l11 > 0.0)
-        l22 = np.sqrt(np.maximum(c[:, 2] - l21 * l21, 0.0))
-        offset = mu[:, 0] + l11 * g[:, 0]
-        exponent = np.maximum(mu[:, 1] + l21 * g[:, 0] + l22 * g[:, 1], 0.1)
-        return self.states[idx], self.modes[idx], offset, exponent
-
+            return self.states[idx], self.modes[idx], offset, None, None
+        mu = belief.mean[idx]
+        return (self.states[idx], self.modes[idx], mu[:, 0].copy(), np.maximum(mu[:, 1], 0.1),
+                belief.cov[idx].mean(axis=0))
 
     def planning_noise(self) -> PulseNoise | None:
         """What another pulse would tell the planner (:class:`PulseNoise`) under the filter's

@@ -229,9 +229,10 @@ class MissionCore:
         beliefs = []
         for tid in targets:
             f = self.filters[tid]
-            states, modes, offset, exponent = f.sample_planning(self.planning_particles, self.rng)
+            states, modes, offset, exponent, cov = f.sample_planning(self.planning_particles,
+                                                                     self.rng)
             beliefs.append(TagBelief(tid, states, modes, self.motion, float(f.existence),
-                                     offset, exponent, f.planning_noise()))
+                                     offset, exponent, f.planning_noise(), cov))
         return PlanRequest(t, vehicle, tuple(beliefs))
 
     def all_localised(self) -> bool:

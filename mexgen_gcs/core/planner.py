@@ -188,6 +188,9 @@ class TagBelief:
     """(N,) each particle's path-loss exponent (None: the model's)."""
     noise: PulseNoise | None = None
     """What another pulse would tell, by receiver position (None: the receiver noise)."""
+    radio_cov: FloatArray | None = None
+    """(3,) ``[bb, bn, nn]``: the uncertainty of the offsets and exponents (None: none), added
+    to each pulse's noise at the belief's mean position."""
 
 
 class PlanningVehicle(Protocol):

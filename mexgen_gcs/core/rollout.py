@@ -16,9 +16,12 @@ sum w pD / W for the stratified sampler; MC-M its sampled outcome, 0 or 1, per r
     value = sum_k discount^(k-1) r_k,  averaged over the rollouts
 
 R is the receiver noise, or, when the tag's filter is uncertain about the radio, what a pulse
-from that pose would tell it (:class:`core.radio_belief.PulseNoise`: shadowing and model error
-far from where it has listened, much more where it has: the planner then looks for new places
-instead of circling where the power is already known), per step, tag and action.
+from that pose would tell it, per step, tag and action: each particle predicts with its mean
+offset and exponent, and their uncertainty at the belief's mean position is noise; the pulse
+is conditioned on the shadowing the filter has heard (:class:`core.radio_belief.PulseNoise`:
+P_i becomes P(x_i, u) - c P(x_i, u_c), z less c times that power's mean, R becomes r^2): a
+pulse where the filter has listened tells little, so the planner looks for new places
+instead of circling where the power is already known.
 
 and r_k, B_k (the belief carried to step k + 1) by the planner's ``outcome`` rule:
 
@@ -181,7 +184,7 @@ def rollout_gains(
     value = np.zeros(shape[:-1])
     offset_grid = none if offset is None else offset.reshape(n_tags, n_pad)
     exponent_grid = none if exponent is None else exponent.reshape(n_tags, n_pad)
-    inv_2r, nb_c, nb_xy = _pulse_conditioning(beliefs, paths, radio)
+    inv_2r, nb_c, nb_xy = _pulse_conditioning(beliefs, paths, alt_m, radio)
     nb_power = ws.get("nb_power", grid_shape) if nb_c.size else none[None]
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
@@ -222,26 +225,31 @@ def rollout_gains(
     return value.mean(axis=2)
 
 
-def _pulse_conditioning(beliefs: Sequence[PlanningBelief], paths: FloatArray,
+def _pulse_conditioning(beliefs: Sequence[PlanningBelief], paths: FloatArray, alt_m: float,
                         radio: RadioModel) -> tuple[FloatArray, Float32Array, Float32Array]:
-    """Per look-ahead step, tag and action: 1 / (2 R) (H, T, A), R the receiver noise or the
-    variance of a pulse there given the filter's shadowing neighbours, and the neighbours'
-    weight (H, T, A) and centroid (H, T, A, 2) (:class:`core.radio_belief.PulseNoise`); the
-    last two empty when no tag's filter has a shadowing memory."""
+    """Per look-ahead step, tag and action: 1 / (2 R) (H, T, A), and the shadowing
+    neighbours' weight (H, T, A) and centroid (H, T, A, 2) (:class:`core.radio_belief.
+    PulseNoise`; the last two empty when no tag's filter has a shadowing memory). R is the
+    receiver noise, or the variance of a pulse there given the neighbours, plus the
+    uncertainty of the belief's offset and exponent (``radio_cov``) at its mean position."""
     steps, n_act = paths.shape[:2]
-    inv_2r = np.full((steps, len(beliefs), n_act), 0.5 / radio.noise_var)
+    var = np.full((steps, len(beliefs), n_act), radio.noise_var)
     noises = [getattr(b, "noise", None) for b in beliefs]
-    if all(x is None for x in noises):
-        return inv_2r, np.zeros((0, 0, 0), np.float32), np.zeros((0, 0, 0, 2), np.float32)
-    nb_c = np.zeros((steps, len(beliefs), n_act), np.float32)
-    nb_xy = np.zeros((steps, len(beliefs), n_act, 2), np.float32)
-    for i, noise in enumerate(noises):
+    conditioned = any(x is not None for x in noises)
+    nb_c = np.zeros((steps, len(beliefs), n_act) if conditioned else (0, 0, 0), np.float32)
+    nb_xy = np.zeros((*nb_c.shape, 2), np.float32)
+    for i, (b, noise) in enumerate(zip(beliefs, noises, strict=True)):
         if noise is not None:
             r2, c, centre = noise.conditioning(paths)
-            inv_2r[:, i] = 0.5 / r2
+            var[:, i] = r2
             nb_c[:, i] = c
             nb_xy[:, i] = centre
-    return inv_2r, nb_c, nb_xy
+        cov = getattr(b, "radio_cov", None)
+        if cov is not None:
+            rx = np.concatenate([paths, np.full((*paths.shape[:2], 1), alt_m)], axis=-1)
+            log_term, _ = radio.geometry(np.asarray(b.states)[:, :2].mean(axis=0), rx, 0.0)
+            var[:, i] += np.maximum(cov[0] + 2.0 * cov[1] * log_term + cov[2] * log_term**2, 0.0)
+    return 0.5 / var, nb_c, nb_xy
 
 
 def _radio_draws(beliefs: Sequence[PlanningBelief], n: int, n_pad: int, radio: RadioModel

@@ -277,3 +277,16 @@ def test_the_planner_looks_where_the_filter_has_not_listened(method):
                  np.random.default_rng(0))
     assert aware.rewards[east] < 0.5 * aware.rewards[west]
     assert aware.headings_deg[aware.chosen] not in (45.0, 90.0, 135.0)
+
+
+def test_uncertain_offsets_make_every_pulse_noisier():
+    """The offsets' and exponents' spread is noise to the planner: less to gain everywhere."""
+    belief = cluster(np.array([0.0, 300.0]), spread=60.0, seed=2)
+    n = belief.states.shape[0]
+    known = replace(belief, offset_db=np.zeros(n), exponent=np.full(n, 1.5))
+    unsure = replace(known, radio_cov=np.array([16.0, 0.0, 0.0625]))
+    config = small_config("mexgen", lookahead_s=20.0)
+    a = plan([known], HOVER, BIG_AREA, RadioModel(), config, np.random.default_rng(0))
+    b = plan([unsure], HOVER, BIG_AREA, RadioModel(), config, np.random.default_rng(0))
+    assert np.all(b.rewards < 0.8 * a.rewards)
+    assert a.heading_deg == b.heading_deg == 0.0  # still towards the tag

@@ -19,6 +19,7 @@ from mexgen_gcs.core.radio_belief import (
     ShadowMemory,
     shadow_conditioning,
 )
+from mexgen_gcs.core.resampling import systematic_resample
 
 RADIO = RadioModel()
 AREA = SearchArea.rectangle(-600, 600, -600, 600)
@@ -231,3 +232,17 @@ def test_pulse_noise_is_the_vecchia_conditioning_on_the_nearest_cells():
     has = ref[:, 1] != 0.0
     np.testing.assert_allclose(centre[has], ref[has, 2:], rtol=1e-9)
     np.testing.assert_allclose(centre[~has], rx[~has])
+
+
+def test_the_planner_gets_each_particles_mean_unknowns_and_their_spread():
+    """Means, not draws: with a draw per particle, pulses far from the tag told particles
+    apart by their drawn offsets alone. Their uncertainty goes to the planner's noise."""
+    f = _fly(3.0, RADIO.path_loss_exponent, 2, steps=200)
+    rng_a, rng_b = np.random.default_rng(7), np.random.default_rng(7)
+    states, _, offset, exponent, cov = f.sample_planning(500, rng_a)
+    idx = systematic_resample(f.log_w, 500, rng_b)
+    np.testing.assert_array_equal(states, f.states[idx])
+    np.testing.assert_array_equal(offset, f.radio_belief.mean[idx, 0])
+    np.testing.assert_array_equal(exponent, np.maximum(f.radio_belief.mean[idx, 1], 0.1))
+    np.testing.assert_allclose(cov, f.radio_belief.cov[idx].mean(axis=0))
+    assert cov[0] > 0.0 and cov[2] > 0.0
