@@ -246,9 +246,11 @@ def test_duck_typed_inputs_and_a_reused_planner():
 
 def test_bench_planner_smoke(capsys):
     setting = bench_planner.Setting("tiny", 2, 64, "rw")
-    out = bench_planner.run(iterations=2, warmup=0, settings=(setting,))
+    robust = bench_planner.Setting("tiny robust", 1, 64, "static", robust=True)
+    out = bench_planner.run(iterations=2, warmup=0, settings=(setting, robust))
     assert {"what", "machine", "results", "ratios"} <= set(out)
-    assert [r["method"] for r in out["results"]] == ["mexgen", "pim", "mc"]
+    assert [r["method"] for r in out["results"]] == ["mexgen", "pim", "mc"] * 2
+    assert [r["setting"] for r in out["results"]][3:] == ["tiny robust"] * 3
     for r in out["results"]:
         assert {"median_ms", "min_ms", "max_ms", "stages_median_ms"} <= set(r)
         assert set(r["stages_median_ms"]) == set(STAGES)
