@@ -22,6 +22,7 @@ maximum 0 stands for ``exp(l - log_total)``, ``log_total = log sum exp(l)``.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,12 +39,13 @@ _INV_LN10 = 1.0 / math.log(10.0)
 
 
 @inline
-def _powers(x: Float32Array, y: Float32Array, ex: float, ey: float, dz2: float, ks: float,
-            kc: float, half_fb: float, min2: float, log10_d0: float, p0: float,
-            c_slope: float, c_const: float, exponent: Float32Array, offset_db: Float32Array,
-            t: int, out: Float32Array) -> None:
+def _powers(x: Float32Array, y: Float32Array, ex: Any, ey: Any, dz2: Any, ks: Any, kc: Any,
+            half_fb: Any, min2: Any, log10_d0: Any, p0: Any, c_slope: Any, c_const: Any,
+            exponent: Float32Array, offset_db: Float32Array, t: int, out: Float32Array
+            ) -> None:
     """Noiseless power (float32) of every particle (x, y) of tag t from the receiver at
-    (ex, ey) with squared height dz2 and antenna terms ks, kc: see :func:`grid_step`."""
+    (ex, ey) with squared height dz2 and antenna terms ks, kc (float32 scalars): see
+    :func:`grid_step`."""
     n = x.shape[0]
     if exponent.shape[0] > 0:  # p0 - 5 n_i (log10(d^2) - 2 log10(d0)) + gain
         for i in range(n):
