@@ -132,6 +132,12 @@ async def test_fence_breach_holds_and_offboard_is_ignored(px4_factory: Px4Factor
             final = await tel.position_velocity_ned()
             assert math.hypot(final.position.north_m, final.position.east_m) < 3.0
             assert not await tel.in_air()
+            # PX4 says "Disarmed by landing" just after the armed flag drops: wait for it
+            # (twice on 2026-11-26 the texts ended at "Landing detected" when not waiting)
+            deadline = time.monotonic() + 10.0
+            while not any(t.startswith("Disarmed by landing") for t in texts):
+                assert time.monotonic() < deadline, texts
+                await asyncio.sleep(0.1)
         finally:
             for t in tasks:
                 t.cancel()
