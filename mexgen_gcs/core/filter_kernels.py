@@ -121,34 +121,20 @@ def inlier_density(e_db: float, s_db2: float, p: RadioParams) -> float:
 
 
 @inline
-def likelihood(pd: float, miss: float, g_in: FloatArray, share: FloatArray, p: RadioParams
+def likelihood(pd: float, miss: float, g_det: FloatArray, share: FloatArray, p: RadioParams
                ) -> float:
-    """L = 1 - pD + pD sum_z g(z) / kappa, g = g_in + eps U(clutter range), from the inlier
-    densities ``g_in`` (J,) of the detections; ``share`` (J,) receives each detection's
-    probability of being this particle's inlier, pD g_in(z) / (kappa L). L >= 1e-12."""
-    nz = g_in.shape[0]
+    """L = 1 - pD + sum_z (g_det(z) + pD eps U(clutter range)) / kappa from ``g_det`` (J,),
+    each detection's joint density of being detected and reading its power as the tag's
+    inlier (pD (1 - eps) N(z) in the classic model, pD(z) (1 - eps) N(z) in the robust one);
+    ``share`` (J,) receives each detection's probability of being this particle's inlier,
+    g_det(z) / (kappa L). L >= 1e-12."""
+    nz = g_det.shape[0]
     total = miss
     for j in range(nz):
-        g_in[j] *= pd * p.inv_kappa
-        total += g_in[j] + pd * p.outlier_density * p.inv_kappa
+        g_det[j] *= p.inv_kappa
+        total += g_det[j] + pd * p.outlier_density * p.inv_kappa
     for j in range(nz):
-        share[j] = g_in[j] / total
-    return total
-
-
-@inline
-def robust_likelihood(pd: float, miss: float, g_in: FloatArray, share: FloatArray,
-                      p: RadioParams) -> float:
-    """:func:`likelihood` with each detection's inlier term ``g_in`` (J,) already the joint
-    density of detecting the pulse and reading its power, pD(z) (1 - eps) N(z); outliers keep
-    the marginal pD. ``share`` (J,) receives each detection's inlier responsibility."""
-    nz = g_in.shape[0]
-    total = miss
-    for j in range(nz):
-        g_in[j] *= p.inv_kappa
-        total += g_in[j] + pd * p.outlier_density * p.inv_kappa
-    for j in range(nz):
-        share[j] = g_in[j] / total
+        share[j] = g_det[j] / total
     return total
 
 
@@ -236,7 +222,7 @@ def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_
         for i in range(n):
             pd, miss = detection(power[i], 0.0, p)
             for j in range(nz):
-                g_in[j] = inlier_density(z_db[j] - power[i], p.noise_var, p)
+                g_in[j] = pd * inlier_density(z_db[j] - power[i], p.noise_var, p)
             lik[i] = likelihood(pd, miss, g_in, share, p)
     s1 = np.empty(1)
     s2 = np.empty(1)
@@ -308,7 +294,7 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
             e = z_db[j] - pred
             pd_z, _ = detection(pred + vp / s * e, vp * p.noise_var / s, p)
             g_in[j] = inlier_density(e, s, p) * pd_z
-        lik[i] = robust_likelihood(pd, miss, g_in, share, p)
+        lik[i] = likelihood(pd, miss, g_in, share, p)
         w_prior = math.exp(log_w[i]) if nz else 0.0
         for j in range(nz):
             w = min(max(share[j], 0.0), 1.0)

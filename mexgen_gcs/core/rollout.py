@@ -184,7 +184,7 @@ def rollout_gains(
     value = np.zeros(shape[:-1])
     offset_grid = none if offset is None else offset.reshape(n_tags, n_pad)
     exponent_grid = none if exponent is None else exponent.reshape(n_tags, n_pad)
-    inv_2r, nb_c, nb_xy = _pulse_conditioning(beliefs, paths, alt_m, radio)
+    inv_2r, nb_c, nb_xy = _pulse_noise(beliefs, paths, alt_m, radio)
     nb_power = ws.get("nb_power", grid_shape) if nb_c.size else none[None]
     measure_s = update_s = reward_s = 0.0
     for k in range(steps):
@@ -225,8 +225,8 @@ def rollout_gains(
     return value.mean(axis=2)
 
 
-def _pulse_conditioning(beliefs: Sequence[PlanningBelief], paths: FloatArray, alt_m: float,
-                        radio: RadioModel) -> tuple[FloatArray, Float32Array, Float32Array]:
+def _pulse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray, alt_m: float,
+                 radio: RadioModel) -> tuple[FloatArray, Float32Array, Float32Array]:
     """Per look-ahead step, tag and action: 1 / (2 R) (H, T, A), and the shadowing
     neighbours' weight (H, T, A) and centroid (H, T, A, 2) (:class:`core.radio_belief.
     PulseNoise`; the last two empty when no tag's filter has a shadowing memory). R is the
