@@ -77,20 +77,25 @@ def survey_coverage(reality: str, seeds: range) -> Coverage:
 
 def test_the_final_radius_holds_in_the_field_world():
     """Shadowing with fading, an antenna, terrain, transmit offsets, exponent and compass the
-    model does not know: 48 surveys, the final 95 % radii hold for at least 0.9 of them (each
-    detection conditioned on 6 neighbour cells held for 0.88 over 1000 surveys; 12: 0.97)."""
+    model does not know: 48 surveys, the final 95 % radii hold for at least 0.9 of them and
+    at most one claim misses (47 of 48 and 11 of 11 on the machine that wrote this; with
+    each detection conditioned on 6 neighbour cells instead of 12, 2 of 17 claims missed,
+    and over 1000 surveys the final radii held for 0.88 against 0.97)."""
     cov = survey_coverage("field", range(48))
     assert cov.final_inside >= 0.9 * cov.surveys, cov
     assert cov.claims_inside >= cov.claims - 1, cov
 
 
 def test_the_final_radius_holds_in_the_matched_world():
+    """The model's own world: every survey claims, and the radii hold (22 and 23 of 24 on
+    the machine that wrote this; 0.945 of 400 claims)."""
     cov = survey_coverage("matched", range(24))
-    assert cov.final_inside >= 22, cov
-    assert cov.claims == 24 and cov.claims_inside >= 22, cov
+    assert cov.claims == 24, cov
+    assert cov.claims_inside >= 21 and cov.final_inside >= 21, cov
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1200)
 @pytest.mark.parametrize("reality", ["matched", "shadowing", "field"])
 def test_survey_study(reality):
     """The study in docs/localisation.md (1000 surveys per world, about 8 minutes each)."""
