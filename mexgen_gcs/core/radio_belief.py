@@ -169,9 +169,9 @@ SHADOW_NEIGHBOURS = 12
 """m: earlier detection cells each detection is conditioned on (Vecchia approximation). The
 cells are noisy (receiver noise and fading on each pulse), and a nearest-neighbour
 approximation conditioned on noisy responses needs more neighbours than one on the field
-itself (Katzfuss and Guinness 2021); with 6 each pulse looked more independent than it is and
-the 95 % radii held for 0.88 of 1000 field-world surveys, with 12 for 0.97
-(tests/core/test_calibration.py, docs/localisation.md)."""
+itself (Katzfuss and Guinness 2021); with 6 each pulse looked more independent than it is: in
+1000 field-world surveys the claims held for 0.86 and the final radii for 0.88, with 12 for
+0.96 and 0.97 (tests/core/test_calibration.py, docs/localisation.md)."""
 CELL_M = 5.0
 """Detections within this distance (and CELL_YAW_RAD of heading) share a memory cell."""
 CELL_YAW_RAD = math.radians(30.0)
