@@ -114,6 +114,35 @@ def detection(mean_db: float, var_db2: float, p: RadioParams) -> tuple[float, fl
 
 
 @inline
+def miss_moments(mean_db: float, q_db2: float, rest_db2: float, miss: float, p: RadioParams
+                 ) -> tuple[float, float]:
+    """A missed pulse as evidence about a Gaussian part of the predicted power: the received
+    power is u + r, u ~ N(mean_db, q_db2) the part a particle's Gaussian over (b, n) explains
+    and r ~ N(0, rest_db2) the rest (shadowing, model error), and the pulse was missed with
+    probability ``miss`` = (1 - pd_max) + pd_max Phi(-(mean - s) / sqrt(w^2 + rest + q)).
+    The moment-matched posterior of u is a mixture of the prior (the pulse lost anyway,
+    weight a = (1 - pd_max) / miss) and the prior times the probit Phi(-(u - s) / sqrt(w^2 +
+    rest)) (the power below the threshold). Returns (shift of u's mean / q, change of its
+    variance / q^2): what the Kalman form needs, with no division by a small q.
+    Misses are most pulses where detection is uncertain: without this each miss would be
+    scored against the same prior of (b, n) and a weak tag read as far (docs/localisation.md)."""
+    d2 = p.detection_spread2_db2 + rest_db2 + q_db2
+    d = np.sqrt(d2)
+    x = (mean_db - p.sensitivity_db) / d
+    if x <= -CERTAIN_X or q_db2 <= 0.0:
+        return 0.0, 0.0  # the pulse could not have been detected, or nothing is unknown
+    if x < 25.0:
+        lam = exp64(-0.5 * x * x) / (math.sqrt(2.0 * math.pi) * 0.5 * math.erfc(x * _SQRT1_2))
+    else:
+        lam = x + 1.0 / x  # phi(x) / Phi(-x), asymptotically
+    a = min(p.miss_floor / miss, 1.0)
+    b = 1.0 - a
+    # the probit part: shift -q lam / d, variance q - q^2 lam (lam - x) / d^2; then the mixture
+    # (whose variance exceeds q when a pulse that should have been heard was lost: bimodal)
+    return -b * lam / d, b * lam * (a * lam - (lam - x)) / d2
+
+
+@inline
 def inlier_density(e_db: float, s_db2: float, p: RadioParams) -> float:
     """(1 - eps) N(e; 0, s): the inlier part of the density of a detected power with
     innovation ``e_db`` and innovation variance ``s_db2`` (0 beyond 37 sigma: no subnormals)."""
@@ -295,6 +324,21 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
             pd_z, _ = detection(pred + vp / s * e, vp * p.noise_var / s, p)
             g_in[j] = inlier_density(e, s, p) * pd_z
         lik[i] = likelihood(pd, miss, g_in, share, p)
+        if nz == 0:
+            # a miss moves the Gaussian too: the power was (probably) below the threshold
+            q = max(one * sh0 + lt * sh1, 0.0)
+            shift_q, dvar_q2 = miss_moments(pred, q, vp - q, miss, p)
+            if dvar_q2 < 0.0:
+                # only where the posterior narrows: where a pulse that should have been heard
+                # was lost the posterior is bimodal (lost, or below the threshold), and its
+                # moment-matched Gaussian would widen with every such miss and let far
+                # particles live; those misses move only the weights
+                b += sh0 * shift_q
+                e_n += sh1 * shift_q
+                f = -dvar_q2
+                cbb = max(cbb - f * sh0 * sh0, 0.0)
+                cbn -= f * sh0 * sh1
+                cnn = max(cnn - f * sh1 * sh1, 0.0)
         w_prior = math.exp(log_w[i]) if nz else 0.0
         for j in range(nz):
             w = min(max(share[j], 0.0), 1.0)

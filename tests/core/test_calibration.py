@@ -17,7 +17,7 @@ from scipy import stats
 
 from mexgen_gcs.core.bernoulli import BernoulliFilter
 from mexgen_gcs.core.reality import profile
-from mexgen_gcs.experiments.scenario import mission_for, scenario
+from mexgen_gcs.experiments.scenario import PresetName, mission_for, scenario
 from mexgen_gcs.experiments.world import RadioWorld
 
 SURVEY_S = 1200
@@ -36,11 +36,12 @@ class Coverage:
         return float(ci.low), float(ci.high)
 
 
-def survey_coverage(reality: str, seeds: range) -> Coverage:
+def survey_coverage(reality: str, seeds: range, preset: PresetName = "paper") -> Coverage:
     """Fly the spiral once per seed in a world drawn from ``reality``; count the first
     localisation claim of each survey and whether it held, and whether the final 95 % radius
-    held the tag. The estimator is the experiments' robust one (paper settings)."""
-    sc = scenario("localise", "static", preset="paper", reality="matched", estimator="robust")
+    held the tag. The estimator is the experiments' robust one with the ``preset``'s
+    settings: "paper" hears every pulse, "field" a tag only within its range."""
+    sc = scenario("localise", "static", preset=preset, reality="matched", estimator="robust")
     mission = mission_for(sc, "mexgen")
     radio, config = mission.radio_model(), mission.filter_config()
     claims = claims_inside = final_inside = 0
@@ -84,6 +85,17 @@ def test_the_final_radius_holds_in_the_field_world():
     cov = survey_coverage("field", range(48))
     assert cov.final_inside >= 0.9 * cov.surveys, cov
     assert cov.claims_inside >= cov.claims - 1, cov
+
+
+def test_misses_teach_the_estimator_where_detection_is_uncertain():
+    """The field preset hears a tag only within its range, and most pulses are misses: each
+    miss must move the particle's belief about the offset and exponent, not only its weight
+    (core.filter_kernels.miss_moments). 48 field-world surveys: the final radii held for 38
+    on the machine that wrote this, 32 when misses moved only the weights (over 400 surveys
+    0.88 against 0.69 over 100). The claims there are not yet honest (7 of 10 held here; 0.86
+    of 71 over 400 surveys; docs/localisation.md), so they are not asserted."""
+    cov = survey_coverage("field", range(48), preset="field")
+    assert cov.final_inside >= 36, cov
 
 
 def test_the_final_radius_holds_in_the_matched_world():

@@ -49,8 +49,10 @@ def test_bench_filter_times_both_estimators_on_a_moving_receiver() -> None:
     from mexgen_gcs.bench import filter as bench_filter
 
     out = bench_filter.run(iterations=3, sizes=(200,), models=("cv",))
-    rows = {(r["estimator"], r["model"], r["n_particles"]): r for r in out["results"]}
-    assert set(rows) == {("classic", "cv", 200), ("robust", "cv", 200)}
+    rows = {(r["estimator"], r["model"], r["n_particles"], r["pulse"]): r
+            for r in out["results"]}
+    assert set(rows) == {(e, "cv", 200, p) for e in ("classic", "robust")
+                         for p in ("detection", "miss")}
     assert all(r["median_ms"] > 0 for r in rows.values())
     estimators = bench_filter.ESTIMATORS
     assert estimators["robust"].active and not estimators["classic"].active
