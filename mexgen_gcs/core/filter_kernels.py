@@ -13,7 +13,9 @@ equations themselves are documented in :mod:`core.radio`, :mod:`core.radio_belie
 - :func:`detection`: ``pD = pd_max Phi((m - s) / w)`` and ``1 - pD``, each to full relative
   precision in its small tail (one ``erfc`` per particle);
 - :func:`inlier_density` and :func:`likelihood`: the outlier-mixture density of a detected
-  power and the Bernoulli likelihood ``L = 1 - pD + pD sum_z g(z) / kappa``.
+  power and the Bernoulli likelihood ``L = 1 - pD + pD sum_z g(z) / kappa``;
+- :func:`miss_moments`: what a missed pulse says about the power a particle's Gaussian over
+  (b, n) explains (a moment-matched probit step).
 
 ``L >= 1 - pd_max >= 1e-12`` always, so it is computed as a probability (no log-sum-exp) and
 only its log enters the log-weights; no particle's weight ever underflows to a NaN.
@@ -21,7 +23,8 @@ only its log enters the log-weights; no particle's weight ever underflows to a N
 The kernels loop over particles once per update with no per-step array temporaries: the
 classic filter's whole update (:func:`classic_update`) and the robust filter's
 (:func:`robust_update`: marginal and prewhitened predictions, likelihood, one weighted
-Kalman step per detection) each end by updating and normalising the log-weights in place.
+Kalman step per detection, or a probit step for a miss) each end by updating and
+normalising the log-weights in place.
 Cost O(N (1 + m) + N J) for m shadowing neighbours and J detections.
 """
 
@@ -273,7 +276,8 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
     ``beta`` (L, m), with variance ``r2`` (L,) (shadowing, receiver noise and model error);
     pD of that prediction less the receiver noise, and for each detection pD given its
     power. Then L for the detections z_db (J,), one weighted, moment-matched
-    Kalman step of the Gaussian per detection (in order, each predicted afresh), and the
+    Kalman step of the Gaussian per detection (in order, each predicted afresh) or, for a
+    missed pulse (J = 0), the narrowing probit step of :func:`miss_moments`, and the
     log-weights updated as by :func:`classic_update`. Returns (log of the weighted mean
     likelihood, (J,) prior-weighted inlier probability of each detection, (L,) sum w and
     (L,) sum w^2 of each level's new weights, w scaled by a common factor)."""

@@ -53,7 +53,16 @@ memory and the neighbour conditioning shared by every particle.
       mu    <- mu + w K e,      K = Sigma H~' / S,  S = H~ Sigma H~' + r^2,  e = z~ - c~ - H~ mu
       Sigma <- Sigma - (w / S - w (1 - w) e^2 / S^2) Sigma H~' H~ Sigma
 
-- A missed pulse leaves theta unchanged (its likelihood ``1 - pD`` only weights particles).
+- A missed pulse weights the particles by ``1 - pD`` and also moves theta: with
+  ``u = H~ theta + c~`` (variance ``q = H~ Sigma H~'``) the miss says the received power
+  ``u + r`` (``r`` the rest of the variance, less the receiver noise) was probably below the
+  threshold. The moment-matched posterior of ``u`` (a probit step mixed with the pulse lost
+  anyway, ``1 - pd_max``; ``core.filter_kernels.miss_moments``) gives ``du`` and ``dq``, and::
+
+      mu    <- mu + Sigma H~' du / q,      Sigma <- Sigma + (dq / q^2) Sigma H~' H~ Sigma
+
+  only when ``dq < 0``: a miss that should have been heard has a bimodal posterior (lost, or
+  a weak power) whose Gaussian would widen with every such miss; it only weights.
 
 With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
 Covariances are stored as their three unique entries ``[bb, bn, nn]``.
