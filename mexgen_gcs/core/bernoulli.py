@@ -28,10 +28,8 @@ are then marginal over them, ``g`` is an outlier mixture, and each detection upd
 Gaussians by a Kalman step (a Rao-Blackwellised particle filter). The update is one compiled
 pass over the particles (:mod:`core.filter_kernels`), the motion one more
 (:mod:`core.motion`). Resampling is systematic when the effective sample size drops below a
-fraction of N, followed by roughening (one compiled pass, :mod:`core.resampling`); the
-robust filter then carries each particle's Gaussian to its jittered place
-(:func:`core.filter_kernels.carry_beliefs`). Every random draw uses the generator handed to
-the constructor.
+fraction of N, followed by roughening (one compiled pass, :mod:`core.resampling`). Every
+random draw uses the generator handed to the constructor.
 """
 
 from __future__ import annotations
@@ -43,12 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mexgen_gcs.core.area import SearchArea
-from mexgen_gcs.core.filter_kernels import (
-    carry_beliefs,
-    classic_update,
-    radio_params,
-    robust_update,
-)
+from mexgen_gcs.core.filter_kernels import classic_update, radio_params, robust_update
 from mexgen_gcs.core.jit import exp64, kernel
 from mexgen_gcs.core.motion import ModeArray, MotionModel
 from mexgen_gcs.core.radio import RadioModel
@@ -70,11 +63,6 @@ from mexgen_gcs.errors import EstimationError
 FloatArray = NDArray[np.float64]
 
 _NO_ROWS2, _NO_ROWS3 = np.zeros((0, 2)), np.zeros((0, 3))  # no radio belief to resample
-_NO_ROWS4 = np.zeros((0, 4))  # no states to keep from before the roughening
-CARRY_CELLS = 32
-"""At most this many remembered cells (every k-th, with the pulses of the k) move the
-Gaussians after a roughening: the cost grows with N times the cells, and the average power
-it keeps is smooth in them."""
 LEVEL_CLAIM_MASS = 0.05
 """A roughness level with at least this posterior probability must agree with a claimed
 localisation radius (about the reported position)."""
@@ -288,15 +276,8 @@ class BernoulliFilter:
             belief = self.radio_belief
             mean, cov = (_NO_ROWS2, _NO_ROWS3) if belief is None else (belief.mean[sl],
                                                                        belief.cov[sl])
-            memory = self.shadow_memory
-            carry = belief is not None and memory.count > 0
-            before = np.empty_like(self.states[sl]) if carry else _NO_ROWS4
             log_mass = resample_roughen(self.log_w[sl], self.states[sl], self.modes[sl], mean,
-                                        cov, self.config.roughening_k, self.rng, before)
-            if carry:  # each Gaussian over (b, n) goes where its particle went
-                poses, n_pulses = memory.summary(CARRY_CELLS)
-                carry_beliefs(before, self.states[sl], mean, cov, poses, n_pulses,
-                              self._params)
+                                        cov, self.config.roughening_k, self.rng)
             mass = log_mass if math.isfinite(log_mass) else -math.log(step)
             self.log_w[sl] = mass - math.log(self.log_w[sl].shape[0])
         self.log_w, _ = normalise_log_weights(self.log_w)

@@ -16,8 +16,6 @@ equations themselves are documented in :mod:`core.radio`, :mod:`core.radio_belie
   power and the Bernoulli likelihood ``L = 1 - pD + pD sum_z g(z) / kappa``;
 - :func:`miss_moments`: what a missed pulse says about the power a particle's Gaussian over
   (b, n) explains (a moment-matched probit step).
-- :func:`carry_beliefs`: each particle's Gaussian moved with it when the roughening after
-  resampling jitters its place.
 
 ``L >= 1 - pd_max >= 1e-12`` always, so it is computed as a probability (no log-sum-exp) and
 only its log enters the log-weights; no particle's weight ever underflows to a NaN.
@@ -366,43 +364,3 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
     s2 = np.empty(n_levels)
     total = _reweight_levels(log_w, lik, s1, s2)
     return total, mass, s1, s2
-
-
-@kernel
-def carry_beliefs(before: FloatArray, after: FloatArray, mean: FloatArray, cov: FloatArray,
-                  cells: FloatArray, n_pulses: FloatArray, p: RadioParams) -> None:
-    """Carry each particle's Gaussian over theta = (b, n) from its place before the
-    roughening jitter, ``before`` (N, >= 2), to its place after, ``after``: the offset moves
-    by what keeps the power it predicts, averaged over the remembered cells (poses ``cells``
-    (K, 4), weighted by their pulses ``n_pulses`` (K,)), as it was::
-
-        b' = b + n dl + dg,   dl = mean_j (l(x, u_j) - l(x', u_j)),  dg likewise for g
-
-    theta' = A theta + c with A = [[1, dl], [0, 1]] (det 1), so the Gaussian keeps its
-    volume and a move and its way back cancel exactly; the exponent and what the misses
-    taught stay. In place on mean (N, 2) and cov (N, 3); unmoved rows are untouched."""
-    n = before.shape[0]
-    k = cells.shape[0]
-    for i in range(n):
-        px, py = before[i, 0], before[i, 1]
-        qx, qy = after[i, 0], after[i, 1]
-        if (px == qx and py == qy) or k == 0:
-            continue
-        sw = 0.0
-        dl = 0.0
-        dg = 0.0
-        for j in range(k):
-            sy = math.sin(cells[j, 3])
-            cy = math.cos(cells[j, 3])
-            l1, g1 = geometry(px, py, cells[j, 0], cells[j, 1], cells[j, 2], sy, cy, p)
-            l2, g2 = geometry(qx, qy, cells[j, 0], cells[j, 1], cells[j, 2], sy, cy, p)
-            w = n_pulses[j]
-            sw += w
-            dl += w * (l1 - l2)
-            dg += w * (g1 - g2)
-        dl /= sw
-        dg /= sw
-        mean[i, 0] += mean[i, 1] * dl + dg
-        sbb, sbn, snn = cov[i, 0], cov[i, 1], cov[i, 2]
-        cov[i, 0] = sbb + 2.0 * dl * sbn + dl * dl * snn
-        cov[i, 1] = sbn + dl * snn

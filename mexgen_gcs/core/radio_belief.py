@@ -64,21 +64,6 @@ memory and the neighbour conditioning shared by every particle.
   only when ``dq < 0``: a miss that should have been heard has a bimodal posterior (lost, or
   a weak power) whose Gaussian would widen with every such miss; it only weights.
 
-- The roughening after resampling (:mod:`core.resampling`) jitters each particle's place
-  from ``x`` to ``x'``; its Gaussian was learnt at ``x``, and a stale Gaussian mispredicts at
-  ``x'``, so later pulses punished the jittered particles for their unknowns rather than
-  their place, and the claims hung on the roughening constant (matched world, k = 0.3: 0.22
-  of the claims held; docs/localisation.md). Each Gaussian now moves with its particle
-  (:func:`core.filter_kernels.carry_beliefs`): the offset shifts by what keeps the power it
-  predicts, averaged over the remembered cells (weighted by their pulses), as it was::
-
-      b' = b + n dl + dg,   dl = mean_j (l(x, u_j) - l(x', u_j)),   dg likewise for g
-
-  a shear of the Gaussian (determinant 1: its volume kept, a move and its way back cancel),
-  the exponent and what the misses taught untouched. Refitting the Gaussian to the cells as
-  independent measurements instead (exact for detections without shadowing) over-trusts
-  correlated cells: field-world claims fell from 0.86 to 0.69.
-
 With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
 Covariances are stored as their three unique entries ``[bb, bn, nn]``.
 """
@@ -247,15 +232,6 @@ class ShadowMemory:
         self.poses[k, :3], self.poses[k, 3] = rx_xyz, yaw_rad
         self.z_sum[k], self.n[k], self.t_s[k] = z_db, 1.0, t_s
         self.count = k + 1
-
-    def summary(self, most: int) -> tuple[FloatArray, FloatArray]:
-        """(poses (K', 4), pulses (K',)) of at most ``most`` cells: every k-th cell in the
-        order they were made, each carrying the pulses of its k."""
-        k = self.count
-        stride = max(1, -(-k // most))
-        start = np.arange(0, k, stride)
-        return (np.ascontiguousarray(self.poses[start]),
-                np.add.reduceat(self.n[:k], start) if k else np.zeros(0))
 
     def neighbours(self, t_s: float, rx_xy: FloatArray, distance_m: float
                    ) -> tuple[NDArray[np.intp], FloatArray]:

@@ -98,15 +98,13 @@ def systematic_resample(log_w: FloatArray, n: int, rng: np.random.Generator) -> 
 @kernel
 def resample_roughen(log_w: FloatArray, states: FloatArray, modes: ModeArray,
                      belief_mean: FloatArray, belief_cov: FloatArray, k: float,
-                     rng: np.random.Generator, before: FloatArray) -> float:
+                     rng: np.random.Generator) -> float:
     """Systematic resampling of M particles in place (rows of ``states`` (M, D), ``modes``
     (M,) and, unless they have no rows, ``belief_mean`` (M, 2) and ``belief_cov`` (M, 3)),
     then roughening of the states (Gordon et al. 1993): Gaussian jitter per dimension with
     std k * range_d * M^(-1/D), where the resampled states spread; dimensions with no spread
-    stay. ``before`` (M, D), unless it has no rows, receives the resampled states before the
-    jitter (for :func:`core.filter_kernels.carry_beliefs`). Draws: one uniform, then the
-    (M, D) jitter row by row. Returns the log of the total weight of log_w (M,) (-inf if
-    every weight is -inf: then resampled uniformly)."""
+    stay. Draws: one uniform, then the (M, D) jitter row by row. Returns the log of the total
+    weight of log_w (M,) (-inf if every weight is -inf: then resampled uniformly)."""
     m, d = states.shape
     cdf, log_mass = _cumulative_weights(log_w)
     idx = _systematic(cdf, m, rng.random())
@@ -120,8 +118,6 @@ def resample_roughen(log_w: FloatArray, states: FloatArray, modes: ModeArray,
         if belief_mean.shape[0]:
             belief_mean[i, :] = old_mean[idx[i], :]
             belief_cov[i, :] = old_cov[idx[i], :]
-    if before.shape[0]:
-        before[:, :] = states
     if k <= 0.0 or m < 2:
         return log_mass
     sigma = np.empty(d)

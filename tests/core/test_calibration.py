@@ -9,7 +9,7 @@ Frame: local ENU metres about home (the experiment world's)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -36,18 +36,14 @@ class Coverage:
         return float(ci.low), float(ci.high)
 
 
-def survey_coverage(reality: str, seeds: range, preset: PresetName = "paper",
-                    roughening_k: float | None = None) -> Coverage:
+def survey_coverage(reality: str, seeds: range, preset: PresetName = "paper") -> Coverage:
     """Fly the spiral once per seed in a world drawn from ``reality``; count the first
     localisation claim of each survey and whether it held, and whether the final 95 % radius
     held the tag. The estimator is the experiments' robust one with the ``preset``'s
-    settings: "paper" hears every pulse, "field" a tag only within its range;
-    ``roughening_k`` None: the mission's."""
+    settings: "paper" hears every pulse, "field" a tag only within its range."""
     sc = scenario("localise", "static", preset=preset, reality="matched", estimator="robust")
     mission = mission_for(sc, "mexgen")
     radio, config = mission.radio_model(), mission.filter_config()
-    if roughening_k is not None:
-        config = replace(config, roughening_k=roughening_k)
     claims = claims_inside = final_inside = 0
     for seed in seeds:
         rng = np.random.default_rng([seed, 7])
@@ -108,16 +104,6 @@ def test_the_final_radius_holds_in_the_matched_world():
     cov = survey_coverage("matched", range(24))
     assert cov.claims == 24, cov
     assert cov.claims_inside >= 21 and cov.final_inside >= 21, cov
-
-
-def test_the_claims_do_not_hang_on_the_roughening():
-    """After resampling the particles are jittered (filter.roughening_k); each carries its
-    Gaussian over (offset, exponent) to its new place (core.filter_kernels.carry_beliefs).
-    With a stale Gaussian the matched world's claims held for 3 of 19 at k = 0.3 (0.22 of
-    100); carried, 20 of 20 (0.99 of 100, docs/localisation.md)."""
-    cov = survey_coverage("matched", range(1000, 1020), roughening_k=0.3)
-    assert cov.claims >= 15, cov
-    assert cov.claims_inside >= cov.claims - 1, cov
 
 
 @pytest.mark.slow

@@ -10,7 +10,6 @@ import pytest
 from scipy.special import ndtr
 
 from mexgen_gcs.core.filter_kernels import (
-    carry_beliefs,
     classic_update,
     detection,
     geometry,
@@ -257,45 +256,3 @@ def test_robust_update_counts_the_detection_of_a_strong_pulse_once() -> None:
         means.append(float(np.exp(log_w) @ x))
     assert inside / 200 >= 0.9
     assert abs(np.mean(means) - x_true) < 20.0
-
-
-
-def test_the_roughening_carries_each_gaussian_to_its_new_place() -> None:
-    """A particle jittered from x to x' keeps, in distribution, the power it predicts
-    averaged over the remembered cells (the mean and the variance of that average); its
-    exponent stays; moving back undoes the move exactly; an unmoved particle keeps its own."""
-    radio = RadioModel(front_back_db=3.0)
-    p = radio_params(radio)
-    rng = np.random.default_rng(4)
-    k, n = 40, 30
-    cells = np.column_stack([rng.uniform(-300, 300, (k, 2)), np.full(k, 50.0),
-                             rng.uniform(0, 2 * math.pi, k)])
-    n_pulses = rng.integers(1, 6, k).astype(float)
-    before = rng.uniform(-400, 400, (n, 4))
-    after = before + np.column_stack([rng.normal(0, 40, (n, 2)), np.zeros((n, 2))])
-    after[:3] = before[:3]
-    mean = np.column_stack([rng.normal(0, 4, n), rng.uniform(1.2, 2.2, n)])
-    a = rng.normal(0, 1, (n, 2, 2))
-    full = a @ np.swapaxes(a, 1, 2) + 0.01 * np.eye(2)
-    cov = np.column_stack([full[:, 0, 0], full[:, 0, 1], full[:, 1, 1]])
-    mean0, cov0 = mean.copy(), cov.copy()
-
-    def averaged(xy, m, c):  # mean and variance of sum_j w_j P(x, u_j) / sum_j w_j
-        lg = np.array([[geometry(x[0], x[1], u[0], u[1], u[2], math.sin(u[3]),
-                                 math.cos(u[3]), p) for u in cells] for x in xy])
-        h = np.stack([np.ones(len(xy)), lg[:, :, 0] @ n_pulses / n_pulses.sum()], axis=1)
-        g = lg[:, :, 1] @ n_pulses / n_pulses.sum()
-        var = h[:, 0] ** 2 * c[:, 0] + 2 * h[:, 0] * h[:, 1] * c[:, 1] + h[:, 1] ** 2 * c[:, 2]
-        return np.sum(h * m, axis=1) + g, var
-
-    carry_beliefs(before, after, mean, cov, cells, n_pulses, p)
-    for got, want in zip(averaged(after, mean, cov), averaged(before, mean0, cov0),
-                         strict=True):
-        np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-9)
-    np.testing.assert_array_equal(mean[:, 1], mean0[:, 1])
-    np.testing.assert_array_equal(cov[:, 2], cov0[:, 2])
-    assert np.abs(mean[3:, 0] - mean0[3:, 0]).min() > 0.0  # they moved
-    np.testing.assert_array_equal(mean[:3], mean0[:3])
-    carry_beliefs(after, before, mean, cov, cells, n_pulses, p)
-    np.testing.assert_allclose(mean, mean0, rtol=1e-12, atol=1e-12)
-    np.testing.assert_allclose(cov, cov0, rtol=1e-12, atol=1e-12)

@@ -74,20 +74,6 @@ def test_five_percent_outliers_do_not_move_the_estimate(jump_db):
     assert dirty.radius_m < 1.5 * clean.radius_m
 
 
-def test_the_memory_summary_keeps_every_pulse():
-    """The roughening moves the Gaussians over at most a few cells: every k-th, each
-    carrying the pulses of its k."""
-    mem = ShadowMemory()
-    for k in range(100):
-        mem.add(float(k), np.array([10.0 * k, 0.0, 50.0]), 0.0, -50.0)
-        mem.add(float(k), np.array([10.0 * k, 1.0, 50.0]), 0.0, -50.0)  # the same cell
-    poses, n_pulses = mem.summary(32)
-    assert mem.count == 100 and poses.shape == (25, 4)
-    assert n_pulses.sum() == 200.0 and np.all(n_pulses == 8.0)
-    np.testing.assert_array_equal(poses[:, 0], 40.0 * np.arange(25))
-    assert ShadowMemory().summary(32)[0].shape == (0, 4)
-
-
 def test_shadowing_heard_again_adds_little():
     """Detections from one spot repeat its shadowing: they share a memory cell, and a new
     detection there, conditioned on the cell's mean, has almost only the receiver noise left."""
