@@ -242,12 +242,17 @@ class BernoulliFilter:
         idx, d_new = mem.neighbours(self.t_s, rx[:2], unc.shadowing_distance_m)
         beta, r2 = shadow_conditioning(mem, idx, d_new, self._level_shadow_var,
                                        self._level_noise_var, unc.shadowing_distance_m)
+        shadow_left = np.maximum(r2 - self._level_noise_var, 0.0)
+        misses_k = 0.0 if z.shape[0] else mem.misses_near(self.t_s, rx[:2],
+                                                          unc.shadowing_distance_m)
         log_mean_l, mass, s1, s2 = robust_update(
             self.states, belief.mean, belief.cov, belief.level, rx, yaw,
             np.ascontiguousarray(mem.poses[idx]), np.ascontiguousarray(mem.z_db[idx]), beta, r2,
-            z, self.log_w, self._params)
+            shadow_left, misses_k, z, self.log_w, self._params)
         for j in np.flatnonzero(mass > 0.5):  # remember the pulses most likely the tag's
             mem.add(self.t_s, rx, yaw, float(z[j]))
+        if not z.shape[0]:
+            mem.add_miss(self.t_s, rx[:2])
         return log_mean_l, s1, s2
 
     @property

@@ -15,7 +15,8 @@ equations themselves are documented in :mod:`core.radio`, :mod:`core.radio_belie
 - :func:`inlier_density` and :func:`likelihood`: the outlier-mixture density of a detected
   power and the Bernoulli likelihood ``L = 1 - pD + pD sum_z g(z) / kappa``;
 - :func:`miss_moments`: what a missed pulse says about the power a particle's Gaussian over
-  (b, n) explains (a moment-matched probit step).
+  (b, n) explains (a moment-matched probit step);
+- :func:`correlated_miss`: a miss given the earlier misses that share its shadowing.
 
 ``L >= 1 - pd_max >= 1e-12`` always, so it is computed as a probability (no log-sum-exp) and
 only its log enters the log-weights; no particle's weight ever underflows to a NaN.
@@ -145,6 +146,46 @@ def miss_moments(mean_db: float, q_db2: float, rest_db2: float, miss: float, p: 
     return -b * lam / d, b * lam * (a * lam - (lam - x)) / d2
 
 
+_GH_X, _GH_W = np.polynomial.hermite.hermgauss(16)
+GH_NODES = np.sqrt(2.0) * _GH_X
+"""Gauss-Hermite nodes and weights for E over s ~ N(0, 1): s = sqrt(2) x, w / sqrt(pi)."""
+GH_WEIGHTS = _GH_W / math.sqrt(math.pi)
+
+
+@inline
+def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float,
+                    p: RadioParams) -> float:
+    """P(miss | k earlier misses that share its shadowing): E[a(s)^(k+1)] / E[a(s)^k] over
+    the shadowing s ~ N(0, shadow_db2), a(s) = 1 - pd_max Phi((pred + s - sens) /
+    sqrt(spread^2 + vp - shadow)) the miss probability given s (Gauss-Hermite, 16 nodes).
+
+    k = 0 is the marginal miss 1 - pD. As k grows, a particle whose power is near the
+    threshold is no longer punished by every miss in one shadowed patch: the first misses
+    say the patch is weak, and the next ones repeat it. A particle that should have heard
+    the pulse whatever the shadowing still pays 1 - pd_max for each (those losses are
+    independent). k is a count weighted by correlation, so this treats the earlier misses as
+    if at this pulse's shadowing and geometry: an approximation of the censored Gaussian
+    field, measured in docs/localisation.md."""
+    tau = np.sqrt(p.detection_spread2_db2 + max(vp_db2 - shadow_db2, 0.0))
+    sd = np.sqrt(shadow_db2)
+    nq = GH_NODES.shape[0]
+    a = np.empty(nq)
+    log_ak = np.empty(nq)
+    top = -np.inf
+    for q in range(nq):
+        x = (pred_db + sd * GH_NODES[q] - p.sensitivity_db) / tau
+        a[q] = p.miss_floor + p.pd_max * 0.5 * math.erfc(x * _SQRT1_2)
+        log_ak[q] = k * math.log(a[q])  # a^k on the log scale: hundreds of misses underflow
+        top = max(top, log_ak[q])
+    num = 0.0
+    den = 0.0
+    for q in range(nq):
+        ak = math.exp(log_ak[q] - top)
+        num += GH_WEIGHTS[q] * ak * a[q]
+        den += GH_WEIGHTS[q] * ak
+    return min(max(num / den, p.miss_floor), 1.0)
+
+
 @inline
 def inlier_density(e_db: float, s_db2: float, p: RadioParams) -> float:
     """(1 - eps) N(e; 0, s): the inlier part of the density of a detected power with
@@ -265,8 +306,8 @@ def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_
 @kernel
 def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: LevelArray,
                   rx_xyz: FloatArray, rx_yaw_rad: float, nb_poses: FloatArray, nb_z_db: FloatArray,
-                  beta: FloatArray, r2: FloatArray, z_db: FloatArray,
-                  log_w: FloatArray, p: RadioParams
+                  beta: FloatArray, r2: FloatArray, shadow_left: FloatArray, misses_k: float,
+                  z_db: FloatArray, log_w: FloatArray, p: RadioParams
                   ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
     """The robust filter's whole update (:mod:`core.radio_belief`), in place.
 
@@ -278,7 +319,10 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
     power. Then L for the detections z_db (J,), one weighted, moment-matched
     Kalman step of the Gaussian per detection (in order, each predicted afresh) or, for a
     missed pulse (J = 0), the narrowing probit step of :func:`miss_moments`, and the
-    log-weights updated as by :func:`classic_update`. Returns (log of the weighted mean
+    log-weights updated as by :func:`classic_update`. A miss is scored given ``misses_k``
+    earlier misses weighted by their shadowing correlation with it (:func:`correlated_miss`,
+    over each level's shadowing left after the neighbours, ``shadow_left`` (L,)), and its
+    probit step is divided by 1 + misses_k. Returns (log of the weighted mean
     likelihood, (J,) prior-weighted inlier probability of each detection, (L,) sum w and
     (L,) sum w^2 of each level's new weights, w scaled by a common factor)."""
     n = states.shape[0]
@@ -321,17 +365,23 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
         s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
         vp = max(s - p.noise_var, 0.0)
         pd, miss = detection(pred, vp, p)
+        miss_lik = miss
+        if nz == 0 and misses_k > 0.0 and shadow_left[lev] > 0.0:
+            miss_lik = correlated_miss(pred, vp, shadow_left[lev], misses_k, p)
         for j in range(nz):
             # a detected power is both a draw of the received power and evidence that it was
             # above the threshold: pD given z (the power's conditional law), not pD
             e = z_db[j] - pred
             pd_z, _ = detection(pred + vp / s * e, vp * p.noise_var / s, p)
             g_in[j] = inlier_density(e, s, p) * pd_z
-        lik[i] = likelihood(pd, miss, g_in, share, p)
+        lik[i] = likelihood(pd, miss_lik, g_in, share, p)
         if nz == 0:
             # a miss moves the Gaussian too: the power was (probably) below the threshold
             q = max(one * sh0 + lt * sh1, 0.0)
             shift_q, dvar_q2 = miss_moments(pred, q, vp - q, miss, p)
+            # misses that share this one's shadowing said mostly the same about (b, n)
+            shift_q /= 1.0 + misses_k
+            dvar_q2 /= 1.0 + misses_k
             if dvar_q2 < 0.0:
                 # only where the posterior narrows: where a pulse that should have been heard
                 # was lost the posterior is bimodal (lost, or below the threshold), and its

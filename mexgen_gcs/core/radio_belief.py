@@ -63,6 +63,16 @@ memory and the neighbour conditioning shared by every particle.
 
   only when ``dq < 0``: a miss that should have been heard has a bimodal posterior (lost, or
   a weak power) whose Gaussian would widen with every such miss; it only weights.
+- Misses share the shadowing too. The memory keeps the misses in cells as well, and a new
+  miss at ``u`` is scored given ``K = sum_j n_j exp(-|u - u_j| / L)`` earlier ones, as if
+  they were at its shadowing ``s`` (the level's shadowing left after the neighbours)::
+
+      P(miss | K earlier) = E[a(s)^(K+1)] / E[a(s)^K],   a(s) = 1 - pD given s
+
+  (:func:`core.filter_kernels.correlated_miss`; K = 0 is ``1 - pD``), and its step of the
+  Gaussian is divided by ``1 + K``. Without this, a flight through one weak patch punished
+  every place near the threshold once per pulse, and taught the Gaussian the same miss
+  again and again: in the field world the claims held for 0.86 (docs/localisation.md).
 
 With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
 Covariances are stored as their three unique entries ``[bb, bn, nn]``.
@@ -193,7 +203,9 @@ class ShadowMemory:
     """The detections a filter has used, summarised in small cells (pose of the first
     detection, mean power, count, last time), to condition new detections on. A cell of n
     pulses conditions like one pulse with noise R / n: hovering over one spot converges on
-    its shadowing instead of leaking ~1/m of it as new information with every pulse.
+    its shadowing instead of leaking ~1/m of it as new information with every pulse. The
+    missed pulses are kept in cells too (position, count, last time), to count how many
+    earlier misses a new one repeats (:meth:`misses_near`).
 
     Static tags keep every cell; for moving tags only cells used within ``horizon_s`` (the
     shadowing is a field about the tag's place too, which moves on)."""
@@ -205,6 +217,11 @@ class ShadowMemory:
     n: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
     t_s: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
     count: int = 0
+    miss_xy: FloatArray = dataclass_field(default_factory=lambda: np.zeros((0, 2)))
+    """(K', 2) east, north of each miss cell; ``miss_n`` its misses, ``miss_t`` the last."""
+    miss_n: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
+    miss_t: FloatArray = dataclass_field(default_factory=lambda: np.zeros(0))
+    miss_count: int = 0
 
     @property
     def z_db(self) -> FloatArray:
@@ -225,13 +242,40 @@ class ShadowMemory:
                 self.t_s[c] = t_s
                 return
         if k >= self.z_sum.shape[0]:
-            size = max(64, 2 * k)
-            self.poses = np.concatenate([self.poses, np.zeros((size - k, 4))])
-            self.z_sum, self.n, self.t_s = (np.concatenate([a, np.zeros(size - k)])
-                                            for a in (self.z_sum, self.n, self.t_s))
+            self.poses, self.z_sum, self.n, self.t_s = _grown(k, self.poses, self.z_sum,
+                                                               self.n, self.t_s)
         self.poses[k, :3], self.poses[k, 3] = rx_xyz, yaw_rad
         self.z_sum[k], self.n[k], self.t_s[k] = z_db, 1.0, t_s
         self.count = k + 1
+
+    def add_miss(self, t_s: float, rx_xy: FloatArray) -> None:
+        """Remember a missed pulse at rx_xy (2,) (cells of CELL_M, any heading)."""
+        k = self.miss_count
+        if k:
+            d = np.hypot(self.miss_xy[:k, 0] - rx_xy[0], self.miss_xy[:k, 1] - rx_xy[1])
+            c = int(np.argmin(d))
+            if d[c] < CELL_M:
+                self.miss_n[c] += 1.0
+                self.miss_t[c] = t_s
+                return
+        if k >= self.miss_n.shape[0]:
+            self.miss_xy, self.miss_n, self.miss_t = _grown(k, self.miss_xy, self.miss_n,
+                                                            self.miss_t)
+        self.miss_xy[k] = rx_xy[:2]
+        self.miss_n[k], self.miss_t[k] = 1.0, t_s
+        self.miss_count = k + 1
+
+    def misses_near(self, t_s: float, rx_xy: FloatArray, distance_m: float) -> float:
+        """K: the earlier misses that share a new pulse's shadowing, each counted by its
+        correlation with it, sum n_j exp(-d_j / L)."""
+        k = self.miss_count
+        if k == 0:
+            return 0.0
+        d = np.hypot(self.miss_xy[:k, 0] - rx_xy[0], self.miss_xy[:k, 1] - rx_xy[1])
+        w = np.exp(-d / distance_m) * self.miss_n[:k]
+        if math.isfinite(self.horizon_s):
+            w = np.where(self.miss_t[:k] >= t_s - self.horizon_s, w, 0.0)
+        return float(w.sum())
 
     def neighbours(self, t_s: float, rx_xy: FloatArray, distance_m: float
                    ) -> tuple[NDArray[np.intp], FloatArray]:
@@ -247,6 +291,12 @@ class ShadowMemory:
         if idx.size > SHADOW_NEIGHBOURS:
             idx = idx[np.argpartition(d[idx], SHADOW_NEIGHBOURS)[:SHADOW_NEIGHBOURS]]
         return idx, d[idx]
+
+
+def _grown(k: int, *arrays: FloatArray) -> tuple[FloatArray, ...]:
+    """The memory's arrays (first axis k, full) grown to max(64, 2k) rows of zeros after k."""
+    size = max(64, 2 * k)
+    return tuple(np.concatenate([a, np.zeros((size - k, *a.shape[1:]))]) for a in arrays)
 
 
 def shadow_conditioning(memory: ShadowMemory, idx: NDArray[np.intp], d_new: FloatArray,

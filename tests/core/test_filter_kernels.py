@@ -11,6 +11,7 @@ from scipy.special import ndtr
 
 from mexgen_gcs.core.filter_kernels import (
     classic_update,
+    correlated_miss,
     detection,
     geometry,
     miss_moments,
@@ -88,7 +89,7 @@ def test_classic_update_keeps_the_weights_when_every_particle_is_impossible() ->
 
 
 def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta, r2,
-                      z, log_w):
+                      z, log_w, shadow_left=None, misses_k=0.0):
     """The robust update in numpy, straight from core.radio_belief's equations."""
     mean, cov = mean.copy(), cov.copy()
     xy = states[:, :2]
@@ -123,6 +124,8 @@ def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, n
     parts = (g_in + pd[:, None] * eps / (radio.clutter_max_db - radio.clutter_min_db)
              ) / radio.clutter_density
     lik = 1 - pd + parts.sum(axis=1)
+    if z.size == 0 and misses_k > 0.0:
+        lik = _correlated_miss_quadrature(radio, pred, vp, shadow_left[lev], misses_k)
     gains = g_in / radio.clutter_density / lik[:, None]
     mass = np.exp(log_w) @ gains
     for j in range(z.size):
@@ -140,6 +143,7 @@ def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, n
         shift, dvar = _miss_quadrature(radio, pred, v_w, vp - v_w)
         narrows = dvar < 0.0  # (a miss that would widen the Gaussian leaves it: the kernel)
         shift, dvar = np.where(narrows, shift, 0.0), np.where(narrows, dvar, 0.0)
+        shift, dvar = shift / (1.0 + misses_k), dvar / (1.0 + misses_k)
         mean += (shift / v_w)[:, None] * sh
         f = -dvar / (v_w * v_w)
         cov[:, 0] = np.maximum(cov[:, 0] - f * sh[:, 0] ** 2, 0.0)
@@ -147,6 +151,16 @@ def _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, n
         cov[:, 2] = np.maximum(cov[:, 2] - f * sh[:, 1] ** 2, 0.0)
     post = np.exp(log_w) * lik
     return mean, cov, math.log(post.sum()), post / post.sum(), mass
+
+
+def _correlated_miss_quadrature(radio, pred, vp, shadow, k):
+    """E[a(s)^(k+1)] / E[a(s)^k], s ~ N(0, shadow), by 200-node Gauss-Hermite quadrature."""
+    nodes, weights = np.polynomial.hermite_e.hermegauss(200)
+    pd_max = min(radio.pd_max, 1.0 - 1e-12)
+    tau = np.sqrt(radio.detection_spread_db**2 + np.maximum(vp - shadow, 0.0))[..., None]
+    s = np.sqrt(shadow)[..., None] * nodes
+    a = (1.0 - pd_max) + pd_max * ndtr(-(pred[..., None] + s - radio.sensitivity_db) / tau)
+    return (weights * a ** (k + 1.0)).sum(axis=-1) / (weights * a**k).sum(axis=-1)
 
 
 def _miss_quadrature(radio, mean, q, rest):
@@ -163,9 +177,11 @@ def _miss_quadrature(radio, mean, q, rest):
     return shift, var - q
 
 
-@pytest.mark.parametrize(("n_nb", "n_z", "eps"), [(0, 1, 0.05), (4, 1, 0.05), (4, 2, 0.0),
-                                                   (3, 0, 0.05)])
-def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: float) -> None:
+@pytest.mark.parametrize(("n_nb", "n_z", "eps", "misses_k"),
+                         [(0, 1, 0.05, 0.0), (4, 1, 0.05, 0.0), (4, 2, 0.0, 0.0),
+                          (3, 0, 0.05, 0.0), (3, 0, 0.05, 3.5)])
+def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: float,
+                                                   misses_k: float) -> None:
     rng = np.random.default_rng(10 * n_nb + n_z)
     radio = RadioModel(sensitivity_db=-55.0)
     n, n_levels = 999, 3
@@ -184,11 +200,19 @@ def test_robust_update_matches_the_numpy_equations(n_nb: int, n_z: int, eps: flo
     z = rng.uniform(-60.0, -40.0, n_z)
     log_w = rng.normal(size=n)
     log_w -= np.log(np.exp(log_w).sum())
+    shadow_left = np.maximum(r2 - radio.noise_var - 2.0, 0.0)
     ref = _robust_reference(radio, eps, states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
-                            r2, z, log_w)
+                            r2, z, log_w, shadow_left, misses_k)
     total, mass, s1, s2 = robust_update(states, mean, cov, level, rx, yaw, nb_poses, nb_z, beta,
-                                        r2, z, log_w, radio_params(radio, eps))
+                                        r2, shadow_left, misses_k, z, log_w,
+                                        radio_params(radio, eps))
     quad = 1.0 if n_z else 100.0  # a miss's reference is a quadrature
+    if misses_k:  # and the kernel's correlated miss a 16-node one
+        assert total == pytest.approx(ref[2], rel=1e-4)
+        np.testing.assert_allclose(np.exp(log_w), ref[3], rtol=1e-3, atol=1e-300)
+        np.testing.assert_allclose(mean, ref[0], rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(cov, ref[1], rtol=1e-7, atol=1e-10)
+        return
     np.testing.assert_allclose(mean, ref[0], rtol=1e-10 * quad, atol=1e-12 * quad)
     np.testing.assert_allclose(cov, ref[1], rtol=1e-9 * quad, atol=1e-12 * quad)
     assert total == pytest.approx(ref[2], rel=1e-11)
@@ -250,9 +274,38 @@ def test_robust_update_counts_the_detection_of_a_strong_pulse_once() -> None:
             heard = rng.random() < float(radio.detection_probability(np.array(power)))
             z = np.array([power + rng.normal(0.0, radio.noise_std_db)]) if heard else np.empty(0)
             robust_update(states, mean, cov, np.zeros(n, np.int8), rx, 0.0, np.zeros((0, 4)),
-                          np.zeros(0), np.zeros((1, 0)), r2, z, log_w, p)
+                          np.zeros(0), np.zeros((1, 0)), r2, np.zeros(1), 0.0, z, log_w, p)
         cdf = np.cumsum(np.exp(log_w))
         inside += x[np.searchsorted(cdf, 0.025)] <= x_true <= x[np.searchsorted(cdf, 0.975)]
         means.append(float(np.exp(log_w) @ x))
     assert inside / 200 >= 0.9
     assert abs(np.mean(means) - x_true) < 20.0
+
+
+def test_misses_in_one_shadowed_patch_count_once_for_a_weak_place_not_a_strong_one() -> None:
+    """A miss given k earlier misses that share its shadowing (4 dB): against quadrature;
+    k = 0 is the marginal 1 - pD; near the threshold the next miss is nearly certain once
+    a few have said the patch is weak, while a place that should be heard whatever the
+    shadowing keeps paying about 1 - pd_max for every miss."""
+    radio = RadioModel(sensitivity_db=-60.0, detection_spread_db=2.0, pd_max=0.95)
+    p = radio_params(radio)
+    shadow, vp = 16.0, 16.0 + 9.0
+    pred = np.linspace(-80.0, -30.0, 51)
+    for k, reach in ((0.0, 51), (0.5, 51), (3.0, 51), (12.0, 41)):
+        # 16 nodes against 200: 12 misses within 5 %; past 20 dB above the threshold they
+        # would need a shadowing beyond the 16 nodes' 6.6 sigma, and there a particle pays
+        # 1 - pd_max a miss, as without the correction (it is long dead)
+        ours = np.array([correlated_miss(m, vp, shadow, k, p) for m in pred[:reach]])
+        ref = _correlated_miss_quadrature(radio, pred[:reach], np.full(reach, vp),
+                                          np.full(reach, shadow), k)
+        np.testing.assert_allclose(ours, ref, rtol=2e-3 if k < 5 else 5e-2, atol=1e-6)
+    marginal = np.array([detection(m, vp, p)[1] for m in pred])
+    np.testing.assert_allclose([correlated_miss(m, vp, shadow, 0.0, p) for m in pred], marginal,
+                               rtol=1e-6)
+    at_threshold = [correlated_miss(-60.0, vp, shadow, k, p) for k in (0.0, 3.0, 12.0)]
+    assert at_threshold[0] == pytest.approx(0.5 * 0.95 + 0.05, rel=1e-3)
+    assert at_threshold[0] < at_threshold[1] < at_threshold[2] and at_threshold[2] > 0.9
+    loud = [correlated_miss(-20.0, vp, shadow, k, p) for k in (0.0, 12.0)]
+    assert loud[1] == pytest.approx(0.05, rel=0.05) and loud[0] == pytest.approx(0.05, rel=1e-3)
+    hover = [correlated_miss(m, vp, shadow, 2000.0, p) for m in (-90.0, -60.0, -20.0)]
+    assert all(0.05 <= h <= 1.0 for h in hover)  # hundreds of misses in one place: no NaN

@@ -246,3 +246,24 @@ def test_the_planner_gets_each_particles_mean_unknowns_and_their_spread():
     np.testing.assert_array_equal(exponent, np.maximum(f.radio_belief.mean[idx, 1], 0.1))
     np.testing.assert_allclose(cov, f.radio_belief.cov[idx].mean(axis=0))
     assert cov[0] > 0.0 and cov[2] > 0.0
+
+
+def test_the_memory_counts_earlier_misses_by_their_shadowing_correlation() -> None:
+    """Misses within CELL_M share a cell; K at a place is sum n_j exp(-d_j / L) over the
+    cells, and for a moving tag only cells used within the horizon count."""
+    mem = ShadowMemory()
+    assert mem.misses_near(0.0, np.zeros(2), 50.0) == 0.0
+    for t in range(3):
+        mem.add_miss(float(t), np.array([1.0 * t, 0.0]))  # one cell (within 5 m)
+    mem.add_miss(3.0, np.array([50.0, 0.0]))
+    assert mem.miss_count == 2
+    assert mem.misses_near(3.0, np.zeros(2), 50.0) == pytest.approx(3.0 + math.exp(-1.0))
+    far = mem.misses_near(3.0, np.array([1000.0, 0.0]), 50.0)
+    assert far < 1e-7
+    for t in range(70):  # the arrays grow
+        mem.add_miss(4.0 + t, np.array([0.0, 10.0 * t + 100.0]))
+    assert mem.miss_count == 72
+    moving = ShadowMemory(horizon_s=10.0)
+    moving.add_miss(0.0, np.zeros(2))
+    moving.add_miss(20.0, np.array([100.0, 0.0]))
+    assert moving.misses_near(20.0, np.zeros(2), 50.0) == pytest.approx(math.exp(-2.0))
