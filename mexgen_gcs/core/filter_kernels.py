@@ -146,6 +146,8 @@ def miss_moments(mean_db: float, q_db2: float, rest_db2: float, miss: float, p: 
     return -b * lam / d, b * lam * (a * lam - (lam - x)) / d2
 
 
+_FLAT_X = 8.5
+"""Beyond this many sigma Phi is 1 or 0 in float64 (Phi(-8.5) = 1e-17): a(s) is flat."""
 _GH_X, _GH_W = np.polynomial.hermite.hermgauss(16)
 GH_NODES = np.sqrt(2.0) * _GH_X
 """Gauss-Hermite nodes and weights for E over s ~ N(0, 1): s = sqrt(2) x, w / sqrt(pi)."""
@@ -153,7 +155,7 @@ GH_WEIGHTS = _GH_W / math.sqrt(math.pi)
 
 
 @inline
-def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float,
+def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float, miss: float,
                     p: RadioParams) -> float:
     """P(miss | k earlier misses that share its shadowing): E[a(s)^(k+1)] / E[a(s)^k] over
     the shadowing s ~ N(0, shadow_db2), a(s) = 1 - pd_max Phi((pred + s - sens) /
@@ -165,10 +167,17 @@ def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float,
     the pulse whatever the shadowing still pays 1 - pd_max for each (those losses are
     independent). k is a count weighted by correlation, so this treats the earlier misses as
     if at this pulse's shadowing and geometry: an approximation of the censored Gaussian
-    field, measured in docs/localisation.md."""
+    field, measured in docs/localisation.md.
+
+    ``miss`` is the marginal 1 - pD, returned where a(s) is the same at every node (the
+    pulse inaudible, or audible, whatever the shadowing: most particles, most pulses)."""
     tau = np.sqrt(p.detection_spread2_db2 + max(vp_db2 - shadow_db2, 0.0))
     sd = np.sqrt(shadow_db2)
     nq = GH_NODES.shape[0]
+    reach = sd * GH_NODES[nq - 1]  # the nodes are symmetric
+    if (pred_db + reach - p.sensitivity_db) < -_FLAT_X * tau or (
+            pred_db - reach - p.sensitivity_db) > _FLAT_X * tau:
+        return miss
     a = np.empty(nq)
     log_ak = np.empty(nq)
     top = -np.inf
@@ -367,7 +376,7 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
         pd, miss = detection(pred, vp, p)
         miss_lik = miss
         if nz == 0 and misses_k > 0.0 and shadow_left[lev] > 0.0:
-            miss_lik = correlated_miss(pred, vp, shadow_left[lev], misses_k, p)
+            miss_lik = correlated_miss(pred, vp, shadow_left[lev], misses_k, miss, p)
         for j in range(nz):
             # a detected power is both a draw of the received power and evidence that it was
             # above the threshold: pD given z (the power's conditional law), not pD

@@ -291,21 +291,25 @@ def test_misses_in_one_shadowed_patch_count_once_for_a_weak_place_not_a_strong_o
     p = radio_params(radio)
     shadow, vp = 16.0, 16.0 + 9.0
     pred = np.linspace(-80.0, -30.0, 51)
+
+    def cm(m: float, k: float) -> float:
+        return correlated_miss(m, vp, shadow, k, detection(m, vp, p)[1], p)
+
     for k, reach in ((0.0, 51), (0.5, 51), (3.0, 51), (12.0, 41)):
         # 16 nodes against 200: 12 misses within 5 %; past 20 dB above the threshold they
         # would need a shadowing beyond the 16 nodes' 6.6 sigma, and there a particle pays
         # 1 - pd_max a miss, as without the correction (it is long dead)
-        ours = np.array([correlated_miss(m, vp, shadow, k, p) for m in pred[:reach]])
+        ours = np.array([cm(m, k) for m in pred[:reach]])
         ref = _correlated_miss_quadrature(radio, pred[:reach], np.full(reach, vp),
                                           np.full(reach, shadow), k)
         np.testing.assert_allclose(ours, ref, rtol=2e-3 if k < 5 else 5e-2, atol=1e-6)
     marginal = np.array([detection(m, vp, p)[1] for m in pred])
-    np.testing.assert_allclose([correlated_miss(m, vp, shadow, 0.0, p) for m in pred], marginal,
+    np.testing.assert_allclose([cm(m, 0.0) for m in pred], marginal,
                                rtol=1e-6)
-    at_threshold = [correlated_miss(-60.0, vp, shadow, k, p) for k in (0.0, 3.0, 12.0)]
+    at_threshold = [cm(-60.0, k) for k in (0.0, 3.0, 12.0)]
     assert at_threshold[0] == pytest.approx(0.5 * 0.95 + 0.05, rel=1e-3)
     assert at_threshold[0] < at_threshold[1] < at_threshold[2] and at_threshold[2] > 0.9
-    loud = [correlated_miss(-20.0, vp, shadow, k, p) for k in (0.0, 12.0)]
+    loud = [cm(-20.0, k) for k in (0.0, 12.0)]
     assert loud[1] == pytest.approx(0.05, rel=0.05) and loud[0] == pytest.approx(0.05, rel=1e-3)
-    hover = [correlated_miss(m, vp, shadow, 2000.0, p) for m in (-90.0, -60.0, -20.0)]
+    hover = [cm(m, 2000.0) for m in (-90.0, -60.0, -20.0)]
     assert all(0.05 <= h <= 1.0 for h in hover)  # hundreds of misses in one place: no NaN
