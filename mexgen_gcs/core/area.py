@@ -8,7 +8,7 @@ hull of the area (plus any extra points, e.g. home) pushed outward by a margin.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,6 +23,8 @@ class SearchArea:
     """A simple polygon, vertices (K, 2) east/north metres, K >= 3, either orientation."""
 
     vertices_m: FloatArray
+    _box_fill: float = field(init=False, repr=False)
+    """Share of the bounding box inside the polygon (rejection sampling's acceptance)."""
 
     def __post_init__(self) -> None:
         v = np.asarray(self.vertices_m, dtype=np.float64)
@@ -31,6 +33,8 @@ class SearchArea:
         if self.area_m2(v) <= 0.0:
             raise ValueError("the search area polygon has zero area")
         object.__setattr__(self, "vertices_m", v)
+        w, e, s, n = self.bounds
+        object.__setattr__(self, "_box_fill", self.area_m2(v) / ((e - w) * (n - s)))
 
     @classmethod
     def rectangle(cls, west_m: float, east_m: float, south_m: float, north_m: float) -> SearchArea:
@@ -119,7 +123,7 @@ class SearchArea:
     def sample_uniform(self, n: int, rng: np.random.Generator) -> FloatArray:
         """n points uniform in the polygon, (n, 2), by rejection from the bounding box."""
         w, e, s, nn = self.bounds
-        frac = self.area_m2(self.vertices_m) / ((e - w) * (nn - s))
+        frac = self._box_fill
         out = np.empty((n, 2))
         filled = 0
         while filled < n:

@@ -152,6 +152,30 @@ _GH_X, _GH_W = np.polynomial.hermite.hermgauss(16)
 GH_NODES = np.sqrt(2.0) * _GH_X
 """Gauss-Hermite nodes and weights for E over s ~ N(0, 1): s = sqrt(2) x, w / sqrt(pi)."""
 GH_WEIGHTS = _GH_W / math.sqrt(math.pi)
+_GH_CUM = np.cumsum(GH_WEIGHTS)
+"""The weight of the nodes up to and including each (the nodes ascend)."""
+_MISS_RTOL = 1e-4
+"""A correlated miss whose bound is within this share of the marginal one is the marginal."""
+_PHI_H = 1.0 / 32.0
+_PHI_X = np.arange(-_FLAT_X, _FLAT_X + 0.5 * _PHI_H, _PHI_H)
+_PHI_TAB = np.array([0.5 * math.erfc(x * _SQRT1_2) for x in _PHI_X])
+_PHI_DTAB = -np.exp(-0.5 * _PHI_X**2) / math.sqrt(2.0 * math.pi) * _PHI_H
+"""Phi(-x) on a grid of 1/32 over +-8.5 and its slope per cell, for cubic Hermite
+interpolation (:func:`phi_upper`): within 1.4e-9 of erfc, four times cheaper."""
+
+
+@inline
+def phi_upper(x: float) -> float:
+    """Phi(-x) by cubic Hermite interpolation of a table (absolute error < 1.4e-9; beyond
+    +-8.5 the value at +-8.5, 1 and 1e-17): the quadrature's nodes, where an erfc each cost
+    four times as much. Clamped, not branched, so that a loop over nodes vectorises."""
+    u = min(max((x + _FLAT_X) * (1.0 / _PHI_H), 0.0), _PHI_TAB.shape[0] - 1.0000001)
+    i = int(u)
+    t = u - i
+    t2 = t * t
+    t3 = t2 * t
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * _PHI_TAB[i] + (t3 - 2.0 * t2 + t) * _PHI_DTAB[i]
+            + (3.0 * t2 - 2.0 * t3) * _PHI_TAB[i + 1] + (t3 - t2) * _PHI_DTAB[i + 1])
 
 
 @inline
@@ -169,28 +193,36 @@ def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float, 
     if at this pulse's shadowing and geometry: an approximation of the censored Gaussian
     field, measured in docs/localisation.md.
 
-    ``miss`` is the marginal 1 - pD, returned where a(s) is the same at every node (the
-    pulse inaudible, or audible, whatever the shadowing: most particles, most pulses)."""
+    The answer is a mean of the nodes' a under weights tilted towards large a, so it lies
+    between the untilted mean and the largest a. ``miss`` (the marginal 1 - pD) is returned
+    where that bound says they agree within 1e-4 (the pulse inaudible, or audible, whatever
+    the shadowing: most particles, most pulses)."""
     tau = np.sqrt(p.detection_spread2_db2 + max(vp_db2 - shadow_db2, 0.0))
     sd = np.sqrt(shadow_db2)
     nq = GH_NODES.shape[0]
-    reach = sd * GH_NODES[nq - 1]  # the nodes are symmetric
-    if (pred_db + reach - p.sensitivity_db) < -_FLAT_X * tau or (
-            pred_db - reach - p.sensitivity_db) > _FLAT_X * tau:
+    x0 = (pred_db - p.sensitivity_db) / tau
+    step = sd / tau
+    # a(s) falls as s grows and the nodes ascend: the first node's a is the largest
+    a_top = p.miss_floor + p.pd_max * phi_upper(x0 + step * GH_NODES[0])
+    if a_top <= miss * (1.0 + _MISS_RTOL):
+        return miss  # inaudible (or flat) whatever the shadowing
+    # audible but for a deep fade: the nodes S where a exceeds the floor f by more than the
+    # tolerance are the first few, of weight W; tilted by at most (a_top / f)^k they lift
+    # the mean above f (1 + tol) by at most W (a_top / f)^k (a_top - f)
+    f = p.miss_floor
+    q = 1
+    while q < nq and p.pd_max * phi_upper(x0 + step * GH_NODES[q]) > _MISS_RTOL * f:
+        q += 1
+    if q < nq and (math.log(_GH_CUM[q - 1]) + k * math.log(a_top / f) + math.log(a_top - f)
+                   <= math.log(_MISS_RTOL * miss)):
         return miss
-    a = np.empty(nq)
-    log_ak = np.empty(nq)
-    top = -np.inf
-    for q in range(nq):
-        x = (pred_db + sd * GH_NODES[q] - p.sensitivity_db) / tau
-        a[q] = p.miss_floor + p.pd_max * 0.5 * math.erfc(x * _SQRT1_2)
-        log_ak[q] = k * math.log(a[q])  # a^k on the log scale: hundreds of misses underflow
-        top = max(top, log_ak[q])
+    log_a0 = math.log(a_top)
     num = 0.0
     den = 0.0
     for q in range(nq):
-        ak = math.exp(log_ak[q] - top)
-        num += GH_WEIGHTS[q] * ak * a[q]
+        a = p.miss_floor + p.pd_max * phi_upper(x0 + step * GH_NODES[q])
+        ak = exp64(k * (log64(a) - log_a0))  # a^k / a_top^k <= 1: no overflow
+        num += GH_WEIGHTS[q] * ak * a
         den += GH_WEIGHTS[q] * ak
     return min(max(num / den, p.miss_floor), 1.0)
 

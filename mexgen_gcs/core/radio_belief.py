@@ -166,22 +166,25 @@ class RadioBelief:
     @classmethod
     def prior(cls, n: int, radio: RadioModel, unc: RadioUncertainty,
               tag: TagRadioPrior | None = None) -> RadioBelief:
-        tag = tag or TagRadioPrior()
-        std_b = unc.p0_std_db if tag.std_db is None else tag.std_db
-        mean = np.empty((n, 2))
-        mean[:] = (tag.offset_db, radio.path_loss_exponent)
+        mean_row, cov_row = _prior_rows(radio, unc, tag)
         level = (np.arange(n) % len(unc.levels)).astype(np.int8)
-        cov = np.zeros((n, 3))
-        cov[:, BB] = std_b**2
-        cov[:, NN] = unc.path_loss_exponent_std**2
-        return cls(mean, cov, level)
+        return cls(np.tile(mean_row, (n, 1)), np.tile(cov_row, (n, 1)), level)
 
     def rebirth(self, rows: NDArray[np.bool_], radio: RadioModel, unc: RadioUncertainty,
                 tag: TagRadioPrior | None) -> None:
         """Rows ``rows`` (N,) return to the prior of their own level (births)."""
-        prior = RadioBelief.prior(self.level.shape[0], radio, unc, tag)
-        self.mean[rows] = prior.mean[rows]
-        self.cov[rows] = prior.cov[rows]
+        self.mean[rows], self.cov[rows] = _prior_rows(radio, unc, tag)
+
+
+def _prior_rows(radio: RadioModel, unc: RadioUncertainty, tag: TagRadioPrior | None
+                ) -> tuple[FloatArray, FloatArray]:
+    """One particle's prior (b, n) mean (2,) and covariance (3,) ``[bb, bn, nn]``."""
+    tag = tag or TagRadioPrior()
+    std_b = unc.p0_std_db if tag.std_db is None else tag.std_db
+    cov = np.zeros(3)
+    cov[BB] = std_b**2
+    cov[NN] = unc.path_loss_exponent_std**2
+    return np.array([tag.offset_db, radio.path_loss_exponent]), cov
 
 
 SHADOW_NEIGHBOURS = 12

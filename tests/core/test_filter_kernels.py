@@ -3,18 +3,22 @@ numpy reference of the robust update (the equations of core.radio_belief, writte
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
 import pytest
-from scipy.special import ndtr
+from scipy.special import logsumexp, ndtr
 
 from mexgen_gcs.core.filter_kernels import (
+    GH_NODES,
+    GH_WEIGHTS,
     classic_update,
     correlated_miss,
     detection,
     geometry,
     miss_moments,
+    phi_upper,
     radio_params,
     robust_update,
 )
@@ -313,3 +317,34 @@ def test_misses_in_one_shadowed_patch_count_once_for_a_weak_place_not_a_strong_o
     assert loud[1] == pytest.approx(0.05, rel=0.05) and loud[0] == pytest.approx(0.05, rel=1e-3)
     hover = [cm(m, 2000.0) for m in (-90.0, -60.0, -20.0)]
     assert all(0.05 <= h <= 1.0 for h in hover)  # hundreds of misses in one place: no NaN
+
+
+def test_the_tabulated_upper_tail_is_phi_within_2e_9() -> None:
+    x = np.linspace(-10.0, 10.0, 200_001)
+    ours = np.array([phi_upper(v) for v in x])
+    np.testing.assert_allclose(ours, ndtr(-x), rtol=0.0, atol=2e-9)
+    assert phi_upper(-9.0) == 1.0 and phi_upper(9.0) < 1e-16  # Phi(-+8.5) beyond 8.5
+    assert np.all(np.diff(ours) <= 1e-15)  # never rises: a(s) stays monotone
+
+
+@pytest.mark.parametrize("pd_max", [0.95, 0.6, 1.0])
+def test_a_correlated_miss_is_its_16_node_quadrature_where_it_takes_the_shortcuts(
+        pd_max: float) -> None:
+    """The early-outs (the marginal where the tilted mean is bounded within 1e-4 of it) and
+    the tabulated Phi against the same 16-node quadrature in numpy with erfc, on the log
+    scale, across the threshold and far beyond it, for up to 400 earlier misses."""
+    radio = RadioModel(sensitivity_db=-60.0, detection_spread_db=2.0, pd_max=pd_max)
+    p = radio_params(radio)
+    pred = np.linspace(-130.0, 10.0, 281)
+    for shadow, extra, k in itertools.product((1.0, 4.0, 16.0), (0.0, 9.0),
+                                              (0.5, 3.0, 12.0, 60.0, 400.0)):
+        vp = shadow + extra
+        tau = math.sqrt(4.0 + extra)
+        f = p.miss_floor
+        a = f + p.pd_max * ndtr(-(pred[:, None] + math.sqrt(shadow) * GH_NODES + 60.0) / tau)
+        log_w = np.log(GH_WEIGHTS) + k * np.log(a)
+        ref = np.exp(logsumexp(log_w + np.log(a), axis=1) - logsumexp(log_w, axis=1))
+        ours = np.array([correlated_miss(m, vp, shadow, k, detection(m, vp, p)[1], p)
+                         for m in pred])
+        np.testing.assert_allclose(ours, ref, rtol=3e-4, atol=1e-12,
+                                   err_msg=f"shadow {shadow} extra {extra} k {k}")
