@@ -265,18 +265,19 @@ class BernoulliFilter:
         (from its (L,) sums ``s1``, ``s2``) is below the configured fraction of its slots;
         a dead level (s1 = s2 = 0) never resamples."""
         frac = self.config.resample_ess_fraction
-        for level in np.flatnonzero(s1 * s1 < frac * self._level_slots * s2):
-            self.resample(int(level))
+        degenerate = np.flatnonzero(s1 * s1 < frac * self._level_slots * s2)
+        if degenerate.size:
+            self.resample(tuple(int(lev) for lev in degenerate))
 
-    def resample(self, level: int | None = None) -> None:
+    def resample(self, levels: tuple[int, ...] | None = None) -> None:
         """Systematic resampling to equal weights, then roughening of the states.
 
         With several roughness levels each level is resampled within its own particle slots
         (``level::n_levels``) and keeps its total weight, its posterior probability: a level
         is never crowded out by resampling, only by the evidence (a bank of filters, one per
-        level, weighted by their marginal likelihoods). ``level`` None: every level."""
+        level, weighted by their marginal likelihoods). ``levels`` None: every level."""
         step = self.n_levels
-        for lev in range(step) if level is None else (level,):
+        for lev in range(step) if levels is None else levels:
             sl = slice(lev, None, step)
             belief = self.radio_belief
             mean, cov = (_NO_ROWS2, _NO_ROWS3) if belief is None else (belief.mean[sl],
