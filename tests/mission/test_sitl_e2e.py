@@ -160,10 +160,18 @@ def test_moving_tag_is_followed(tmp_path):
 
 def test_field_world_claims_hold(tmp_path):
     """The demo flown in the simulator's field world (every reality cause at once: transmit
-    power, exponent, antenna, shadowing, fading, terrain, compass bias), a static filter:
-    every tag it calls localised lies inside its claimed radius. Seed 2 put a tag 243 m from
-    a 48 m claim while each miss counted in full (docs/localisation.md). The last estimates
-    of the tags not localised hold for ~0.9 (a rate, not asserted per flight)."""
+    power, exponent, antenna, shadowing, fading, terrain, compass bias), a static filter: no
+    tag it calls localised is grossly outside its claimed radius. Seed 2 put a tag 243 m
+    from a 48 m claim (5x) while each miss counted in full (docs/localisation.md).
+
+    One flight cannot assert a 95 % radius per claim: one claim in twenty may lie outside
+    it, and these flights are not reproducible (the GCS and the simulator share the cores in
+    real time). Seed 2 claimed 1-2 tags in 9 of 10 flights (12 claims, the first at 184-836
+    s where the log was kept; none in one of 1200 s), and 1 of the 12 lay outside (52.9 m
+    against 49.6 m); over seeds 0-9, 1 of 7 (59.5 m against 47.5 m, 1.25x). The coverage is
+    asserted with statistics in tests/core/test_calibration.py and measured over flights
+    and experiment runs in docs/localisation.md. The last estimates of the tags not
+    localised hold for ~0.9 (a rate, not asserted per flight)."""
     result = run_sitl(MISSIONS / "demo.yaml", seed=2, speedup=SPEEDUP, ports=SitlPorts.free(),
                       log_dir=tmp_path, overrides={"sim.reality": "field",
                                                    "filter.motion": "static",
@@ -172,7 +180,7 @@ def test_field_world_claims_hold(tmp_path):
     assert result.end_reason in ("all_localised", "max_mission_time"), result.events[-10:]
     assert result.exit_code == (0 if result.end_reason == "all_localised" else 1)
     for tid, info in result.localised.items():
-        assert info["error_m"] <= info["radius_m"], (tid, info)
+        assert info["error_m"] <= 1.5 * info["radius_m"], (tid, info)
     assert len(result.localised) + len(result.unresolved) == 4
     assert all(info["radius_m"] > 0.0 for info in result.unresolved.values())
 
