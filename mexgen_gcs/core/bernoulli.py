@@ -63,6 +63,10 @@ from mexgen_gcs.errors import EstimationError
 FloatArray = NDArray[np.float64]
 
 _NO_ROWS2, _NO_ROWS3 = np.zeros((0, 2)), np.zeros((0, 3))  # no radio belief to resample
+COLLAPSED_RADIUS_M = 1e-3
+"""A radius below this is a cloud of one particle's copies (every weight on one ancestor;
+roughening adds nothing where the copies do not spread), not a posterior: it claims nothing
+(its radius, rounding of 0, says nothing about where the tag is)."""
 LEVEL_CLAIM_MASS = 0.05
 """A roughness level with at least this posterior probability must agree with a claimed
 localisation radius (about the reported position)."""
@@ -308,6 +312,7 @@ class BernoulliFilter:
         localised = (
             radius <= self.config.localised_radius_m
             and self.existence >= self.config.localised_min_existence
+            and radius >= COLLAPSED_RADIUS_M
         )
         if self.radio_belief is None:
             offset, exponent = self.tag_prior.offset_db, self.radio.path_loss_exponent

@@ -52,6 +52,25 @@ def test_localises_static_tag_along_fixed_path(seed):
     assert est.existence > 0.99
 
 
+@pytest.mark.parametrize("robust", [False, True])
+def test_a_cloud_collapsed_onto_one_particle_claims_nothing(robust):
+    """Every weight on one particle, resampled: copies of one state, which roughening does
+    not spread. Its radius is 0; a claim from it would tell the operator nothing."""
+    unknowns = (RadioUncertainty(p0_std_db=4.0, shadowing_std_db=(0.0, 4.0)) if robust
+                else RadioUncertainty())
+    f = _filter(0, motion="static", radio_unknowns=unknowns)
+    _fly_circle(f, np.array([180.0, -220.0]), np.random.default_rng(3), steps=30)
+    f.log_w[:] = -np.inf
+    f.log_w[:f.n_levels] = -math.log(f.n_levels)  # one particle of each level holds it all
+    f.states[:] = f.states[0]
+    f.resample()
+    est = f.estimate()
+    assert est.radius_m < 1e-6 and est.existence > 0.5  # rounding of 0
+    assert not est.localised
+    f.states[:, :2] += np.random.default_rng(4).normal(0.0, 5.0, (f.states.shape[0], 2))
+    assert f.estimate().localised  # spread (5 m), the same place: claimed
+
+
 def test_existence_falls_when_tag_is_silent():
     f = _filter(0)
     _fly_circle(f, np.array([100.0, 100.0]), np.random.default_rng(1), steps=60)
