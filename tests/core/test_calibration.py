@@ -112,10 +112,26 @@ def test_the_final_radius_holds_in_the_matched_world():
 @pytest.mark.timeout(1200)
 @pytest.mark.parametrize("reality", ["matched", "shadowing", "field"])
 def test_survey_study(reality):
-    """The study in docs/localisation.md (1000 surveys per world, 6-7 minutes each)."""
+    """The study in docs/localisation.md (1000 surveys per world)."""
     cov = survey_coverage(reality, range(1000, 2000))
     low, high = cov.final_interval()
     claims = cov.claims_inside / max(cov.claims, 1)
     print(f"\n{reality}: final {cov.final_inside / cov.surveys:.3f} [{low:.3f}, {high:.3f}]; "
           f"claims {cov.claims}, inside {claims:.3f}")
+    assert low >= 0.9
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(1200)
+@pytest.mark.xfail(strict=True, reason=(
+    "open (docs/localisation.md, 'An antenna the model does not know, on a long orbit'): an "
+    "error that repeats with the geometry is read as a place, and the radius keeps shrinking"))
+def test_the_final_radius_after_a_long_orbit_with_an_unmodelled_antenna():
+    """A known failure, kept (strict: it must fail) so that it says when it is fixed: 200
+    antenna-world surveys (4-5 minutes); the final radii held for 0.155 of them and the
+    claims for 0.95 when this was written."""
+    cov = survey_coverage("antenna", range(1000, 1200))
+    low, high = cov.final_interval()
+    print(f"\nantenna: final {cov.final_inside / cov.surveys:.3f} [{low:.3f}, {high:.3f}]; "
+          f"claims {cov.claims}, inside {cov.claims_inside / max(cov.claims, 1):.3f}")
     assert low >= 0.9
