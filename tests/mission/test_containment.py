@@ -183,6 +183,19 @@ async def test_a_late_planner_is_skipped_never_queued(tmp_path, monkeypatch):
     assert threading.active_count() < 50
 
 
+async def test_a_stalled_loop_restarts_the_plan_schedule_without_a_double_plan(tmp_path):
+    """The event loop blocked for 0.5 s of wall time (10 s of vehicle time at 20x): the
+    planner plans once when it wakes and the next one an interval later, not at once for
+    the tick it missed (a CI run on a busy machine planned twice 0.26 s apart)."""
+    stall = Scripted("offboard", 20.0, lambda v: time.sleep(0.5))
+    f = await fly(tmp_path / "log", _vehicle(stall), requests=(("offboard", 45.0, "rtl"),))
+    assert f.result.end_reason == "operator_rtl" and f.result.error is None
+    plan_t = [r["t"] for r in f.records if r["type"] == "plan"]
+    gaps = [b - a for a, b in itertools.pairwise(plan_t)]
+    assert max(gaps) > 8.0, gaps  # the stall happened between two plans
+    assert min(gaps) > 4.0, gaps
+
+
 # -- the operator's land ------------------------------------------------------------------------
 
 

@@ -107,13 +107,17 @@ async def planner_loop(ctx: MissionContext, planner: MissionPlanner,
                        executor: concurrent.futures.ThreadPoolExecutor) -> None:
     """Plan every replan interval of vehicle time. The worker thread is never queued: a plan
     still running when the next is due is left to finish (its result is dropped) and the due
-    one is skipped; the vehicle holds while planning is late."""
+    one is skipped; the vehicle holds while planning is late. Plans keep to a grid of the
+    interval; woken more than half an interval late (the event loop stalled), the grid
+    restarts from this plan, so the tick it slept through is not planned at once after it."""
     interval = ctx.mission.planner.replan_interval_s
     loop = asyncio.get_running_loop()
     running: asyncio.Future[Plan] | None = None
     due = ctx.clock.now()
     while True:
         t = ctx.clock.now()
+        if t - due > 0.5 * interval:  # a stall: the schedule restarts from this plan
+            due = t
         ctx.next_plan_t = due + interval
         if running is not None and not running.done():
             n = ctx.count("plans_skipped")
@@ -138,7 +142,7 @@ async def planner_loop(ctx: MissionContext, planner: MissionPlanner,
                               budget_wall_s=round(budget, 2))
         due += interval
         now = ctx.clock.now()
-        if due < now:  # a stall: restart the schedule from now instead of catching up
+        if due < now:  # planning took longer than the interval: the next one now
             due = now
         await ctx.clock.sleep(due - now)
 
