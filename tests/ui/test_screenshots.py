@@ -9,7 +9,7 @@ import re
 import pytest
 
 from mexgen_gcs.ui.app import build_app
-from tests.ui.ui_helpers import FakeSource, make_snapshot, svg_rows, until
+from tests.ui.ui_helpers import FakeSource, make_snapshot, screen_text, svg_rows, until
 
 
 @pytest.mark.parametrize("size", [(120, 40), (80, 24)])
@@ -21,13 +21,19 @@ async def test_main_screen_screenshot(tmp_path, size):
     async with app.run_test(size=size) as pilot:
         source.push(snap)
         await until(pilot, lambda: app.snapshot is snap)
+        # the panels render after the snapshot lands (later on a loaded machine): wait for
+        # the last of them, the event log's newest line and the tag table's last row
+        await until(pilot, lambda: "tag_localised" in screen_text(app)
+                    and "150.460" in screen_text(app))
         await pilot.pause()
         path = app.save_screenshot(f"main-{width}x{height}.svg", path=str(tmp_path))
     svg = (tmp_path / f"main-{width}x{height}.svg").read_text(encoding="utf-8")
     assert path.endswith(".svg") and svg.startswith("<svg")
     rows = svg_rows(svg, width, height)
-    # the size: one clip line per terminal row, nothing drawn past the last column
-    assert len(set(re.findall(r"line-(\d+)\)", svg))) == height
+    # the size: text drawn on the last terminal row and none below it (a row of blanks
+    # draws no text, so rows are not counted), nothing drawn past the last column
+    drawn_rows = {int(n) for n in re.findall(r"line-(\d+)\)", svg)}
+    assert max(drawn_rows) == height - 1 and min(drawn_rows) == 0
     assert all(len(r) == width for r in rows)
     text = "\n".join(rows)
     # the warning on top, the status right under it
