@@ -129,7 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(docs/localisation.md); default: matched")
     p.add_argument("--estimator", choices=ESTIMATORS, default="classic",
                    help="classic: trusts the radio model (the paper's); robust: estimates each "
-                   "tag's power offset and path-loss exponent, shadowing, outliers")
+                   "tag's power offset and path-loss exponent and the antenna's front-to-back "
+                   "ratio, shadowing, outliers")
     p.add_argument("--quick", action="store_true",
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")

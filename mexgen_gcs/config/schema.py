@@ -159,7 +159,7 @@ def _hypotheses(value: Any) -> Any:
 
 
 CLASSIC_ESTIMATOR: Mapping[str, Any] = MappingProxyType({
-    "radio.p0_std_db": 0.0, "radio.path_loss_exponent_std": 0.0,
+    "radio.p0_std_db": 0.0, "radio.path_loss_exponent_std": 0.0, "radio.front_back_std_db": 0.0,
     "radio.shadowing_std_db": [0.0], "radio.model_error_std_db": [0.0],
     "radio.outlier_prob": 0.0})
 """Dotted mission overrides for the classic estimator, which trusts the radio model exactly
@@ -201,6 +201,10 @@ class RadioSection(Section):
     path_loss_exponent_std: Float = Field(
         0.25, ge=0.0, le=5.0,
         description="Prior std of the path-loss exponent about path_loss_exponent; 0 = known.")
+    front_back_std_db: Float = Field(
+        4.0, ge=0.0, le=40.0,
+        description="Prior std of the antenna's front-to-back ratio about front_back_db, dB "
+        "(the airframe changes the pattern); 0 = known.")
     shadowing_std_db: tuple[Annotated[Float, Field(ge=0.0, le=40.0)], ...] = Field(
         (0.0, 2.0, 4.0), min_length=1, max_length=6,
         description="Hypotheses about spatially correlated shadowing, dB (a number or a list); "
@@ -230,6 +234,7 @@ class RadioSection(Section):
         """What the estimator does not know about the radio (core RadioUncertainty)."""
         return RadioUncertainty(
             p0_std_db=self.p0_std_db, path_loss_exponent_std=self.path_loss_exponent_std,
+            front_back_std_db=self.front_back_std_db,
             shadowing_std_db=tuple(self.shadowing_std_db),
             shadowing_distance_m=self.shadowing_distance_m,
             model_error_std_db=tuple(self.model_error_std_db), outlier_prob=self.outlier_prob)

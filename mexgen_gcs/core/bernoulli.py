@@ -354,8 +354,10 @@ class BernoulliFilter:
                 n, self.tag_prior.offset_db)
             return self.states[idx], self.modes[idx], offset, None, None
         mu = belief.mean[idx]
+        # the planner predicts with the mission's antenna pattern: an unknown front-to-back
+        # ratio (theta's c) moves the filter's weights, not the planner's expected pulses
         return (self.states[idx], self.modes[idx], mu[:, 0].copy(), np.maximum(mu[:, 1], 0.1),
-                belief.cov[idx].mean(axis=0))
+                belief.cov[idx][:, :3].mean(axis=0))
 
     def planning_noise(self) -> PulseNoise | None:
         """What another pulse would tell the planner (:class:`PulseNoise`) under the filter's
@@ -398,10 +400,10 @@ def weighted_moments(states: FloatArray, log_w: FloatArray, n_levels: int,
     """What :meth:`BernoulliFilter.estimate` reports, in three passes over the particles,
     packed in one array (one allocation to return, which is most of the cost at N = 2000):
     [0:4] the weighted mean state, [4:8] the position covariance (2, 2) row by row, [8:10]
-    the weighted mean of ``radio_mean`` (N, 2) (zeros if it is empty), [10] sum w^2 (1 / the
-    effective sample size), then each roughness level's weight (L,) and weighted squared
-    distance from the mean (L,) (particle slot i belongs to level i % L). log_w: (N,)
-    normalised."""
+    the weighted mean of the first two columns of ``radio_mean`` (N, K) (zeros if it is
+    empty), [10] sum w^2 (1 / the effective sample size), then each roughness level's weight
+    (L,) and weighted squared distance from the mean (L,) (particle slot i belongs to level
+    i % L). log_w: (N,) normalised."""
     n = states.shape[0]
     w = np.empty(n)
     # short loops with scalar accumulators (not array elements): LLVM vectorises each
@@ -419,7 +421,7 @@ def weighted_moments(states: FloatArray, log_w: FloatArray, n_levels: int,
         s_vy += wi * states[i, 3]
     out = np.zeros(11 + 2 * n_levels)
     out[0], out[1], out[2], out[3], out[10] = s_x, s_y, s_vx, s_vy, s_w2
-    for k in range(radio_mean.shape[1] if radio_mean.shape[0] > 0 else 0):
+    for k in range(min(radio_mean.shape[1], 2) if radio_mean.shape[0] > 0 else 0):
         acc = 0.0
         for i in range(n):
             acc += w[i] * radio_mean[i, k]

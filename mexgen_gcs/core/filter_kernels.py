@@ -292,6 +292,76 @@ def _reweight_levels(log_w: FloatArray, lik: FloatArray, s1: FloatArray, s2: Flo
     return total
 
 
+@inline
+def geometry_and_shape(px: float, py: float, rx: float, ry: float, rz: float, sin_yaw: float,
+                       cos_yaw: float, p: RadioParams) -> tuple[float, float, float]:
+    """(l, g, a): :func:`geometry` and the shape of the mission's pattern ``a = (cos(dpsi) -
+    1) cos(elev)`` (dpsi the tag's bearing from the nose, elev its depression angle), the
+    regressor of an unknown change ``c`` of half the front-to-back ratio; ``g = (fb / 2) a``.
+    One square root each, as :func:`geometry`."""
+    d2, shape = distance2_and_gain(px - rx, py - ry, rz * rz, p.min_distance2_m2, sin_yaw,
+                                   cos_yaw, 1.0)
+    return (0.5 * _MINUS_10_OVER_LN10 * log64(d2 / (p.d0_m * p.d0_m)),
+            0.5 * p.front_back_db * shape, shape)
+
+
+@inline
+def dot(a: FloatArray, b: FloatArray) -> float:
+    acc = 0.0
+    for k in range(a.shape[0]):
+        acc += a[k] * b[k]
+    return acc
+
+
+@inline
+def unpack_gaussian(mean: FloatArray, cov: FloatArray, i: int, mu: FloatArray,
+                    sig: FloatArray) -> None:
+    """Particle i's theta mean into ``mu`` (K,) and its packed covariance (upper triangle
+    column by column, :func:`core.radio_belief.packed_index`) into ``sig`` (K, K)."""
+    kk = mu.shape[0]
+    for b in range(kk):
+        mu[b] = mean[i, b]
+        for a in range(b + 1):
+            v = cov[i, b * (b + 1) // 2 + a]
+            sig[a, b] = v
+            sig[b, a] = v
+
+
+@inline
+def pack_gaussian(mu: FloatArray, sig: FloatArray, i: int, mean: FloatArray, cov: FloatArray
+                  ) -> None:
+    """The inverse of :func:`unpack_gaussian`."""
+    kk = mu.shape[0]
+    for b in range(kk):
+        mean[i, b] = mu[b]
+        for a in range(b + 1):
+            cov[i, b * (b + 1) // 2 + a] = sig[a, b]
+
+
+@inline
+def project(sig: FloatArray, h: FloatArray, sh: FloatArray) -> float:
+    """``sh <- Sigma h'``; returns ``h Sigma h'`` (>= 0: rounding never makes it negative)."""
+    kk = h.shape[0]
+    q = 0.0
+    for a in range(kk):
+        acc = 0.0
+        for b in range(kk):
+            acc += sig[a, b] * h[b]
+        sh[a] = acc
+        q += h[a] * acc
+    return max(q, 0.0)
+
+
+@inline
+def narrow(sig: FloatArray, sh: FloatArray, f: float) -> None:
+    """``Sigma <- Sigma - f (Sigma h')(Sigma h')'``, variances kept >= 0 (rounding)."""
+    kk = sh.shape[0]
+    for a in range(kk):
+        for b in range(kk):
+            sig[a, b] -= f * sh[a] * sh[b]
+        sig[a, a] = max(sig[a, a], 0.0)
+
+
 @kernel
 def classic_update(states: FloatArray, rx_xyz: FloatArray, rx_yaw_rad: float, z_db: FloatArray,
                    log_w: FloatArray, p: RadioParams) -> tuple[float, float]:
@@ -352,8 +422,9 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
                   ) -> tuple[float, FloatArray, FloatArray, FloatArray]:
     """The robust filter's whole update (:mod:`core.radio_belief`), in place.
 
-    Each particle's power predicted from its Gaussian over (offset b, exponent n) (``mean``
-    (N, 2), ``cov`` (N, 3) ``[bb, bn, nn]``), prewhitened against the m neighbour cells
+    Each particle's power predicted from its Gaussian over theta (offset b, exponent n, and
+    with an unknown front-to-back ratio its change c) (``mean`` (N, K), ``cov`` (N, K (K + 1)
+    / 2) packed, :func:`core.radio_belief.packed_index`), prewhitened against the m neighbour cells
     ``nb_poses`` (m, 4) ``[x, y, z, yaw]`` with mean powers ``nb_z_db`` (m,) by its level's
     ``beta`` (L, m), with variance ``r2`` (L,) (shadowing, receiver noise and model error);
     pD of that prediction less the receiver noise, and for each detection pD given its
@@ -385,25 +456,35 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
     g_in = np.empty(nz)
     share = np.empty(nz)
     mass = np.zeros(nz)
+    kk = mean.shape[1]  # the unknowns: (b, n), or (b, n, c) with an unknown front-back ratio
+    pattern = kk > 2
+    h = np.empty(kk)  # the prewhitened regressors H~ (c~ is base)
+    mu = np.empty(kk)
+    sig = np.empty((kk, kk))
+    sh = np.empty(kk)  # Sigma H~'
     for i in range(n):
         lev = level[i]
-        l0, g0 = geometry(states[i, 0], states[i, 1], rx, ry, rz, sin_yaw, cos_yaw, p)
-        lt = l0  # prewhitened regressors: H~ = [one, lt], c~ = base
+        px, py = states[i, 0], states[i, 1]
+        l0, g0, a0 = geometry_and_shape(px, py, rx, ry, rz, sin_yaw, cos_yaw, p)
+        h[0] = 1.0 - beta_sum[lev]
+        h[1] = l0
+        if pattern:
+            h[2] = a0
         base = p.p0_db * (1.0 - beta_sum[lev]) + g0
         for k in range(m if conditioned[lev] else 0):
-            lk, gk = geometry(states[i, 0], states[i, 1], nb_poses[k, 0], nb_poses[k, 1],
-                              nb_poses[k, 2], nb_sin[k], nb_cos[k], p)
-            lt -= beta[lev, k] * lk
-            base -= beta[lev, k] * gk
-        one = 1.0 - beta_sum[lev]
-        b, e_n = mean[i, 0], mean[i, 1]
-        cbb, cbn, cnn = cov[i, 0], cov[i, 1], cov[i, 2]
+            bk = beta[lev, k]
+            lk, gk, ak = geometry_and_shape(px, py, nb_poses[k, 0], nb_poses[k, 1],
+                                            nb_poses[k, 2], nb_sin[k], nb_cos[k], p)
+            h[1] -= bk * lk
+            base -= bk * gk
+            if pattern:
+                h[2] -= bk * ak
+        unpack_gaussian(mean, cov, i, mu, sig)
         # conditional prediction of the power given the neighbours: mean, variance s of the
         # reported power and vp of the received power (s less the receiver noise)
-        pred = z_shift[lev] + base + one * b + lt * e_n
-        sh0 = cbb * one + cbn * lt
-        sh1 = cbn * one + cnn * lt
-        s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
+        q = project(sig, h, sh)
+        pred = z_shift[lev] + base + dot(h, mu)
+        s = q + r2[lev]
         vp = max(s - p.noise_var, 0.0)
         pd, miss = detection(pred, vp, p)
         miss_lik = miss
@@ -418,9 +499,8 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
         lik[i] = likelihood(pd, miss_lik, g_in, share, p)
         if nz == 0:
             # a miss moves the Gaussian too: the power was (probably) below the threshold
-            q = max(one * sh0 + lt * sh1, 0.0)
             shift_q, dvar_q2 = miss_moments(pred, q, vp - q, miss, p)
-            # misses that share this one's shadowing said mostly the same about (b, n)
+            # misses that share this one's shadowing said mostly the same about theta
             shift_q /= 1.0 + misses_k
             dvar_q2 /= 1.0 + misses_k
             if dvar_q2 < 0.0:
@@ -428,29 +508,20 @@ def robust_update(states: FloatArray, mean: FloatArray, cov: FloatArray, level: 
                 # was lost the posterior is bimodal (lost, or below the threshold), and its
                 # moment-matched Gaussian would widen with every such miss and let far
                 # particles live; those misses move only the weights
-                b += sh0 * shift_q
-                e_n += sh1 * shift_q
-                f = -dvar_q2
-                cbb = max(cbb - f * sh0 * sh0, 0.0)
-                cbn -= f * sh0 * sh1
-                cnn = max(cnn - f * sh1 * sh1, 0.0)
+                for a in range(kk):
+                    mu[a] += sh[a] * shift_q
+                narrow(sig, sh, -dvar_q2)
         w_prior = math.exp(log_w[i]) if nz else 0.0
         for j in range(nz):
             w = min(max(share[j], 0.0), 1.0)
             mass[j] += w_prior * w
             # the Gaussians move with each detection: predict afresh
-            sh0 = cbb * one + cbn * lt
-            sh1 = cbn * one + cnn * lt
-            s = max(one * sh0 + lt * sh1, 0.0) + r2[lev]
-            e = z_db[j] - z_shift[lev] - (base + one * b + lt * e_n)
-            b += w * e / s * sh0
-            e_n += w * e / s * sh1
-            f = w / s - w * (1.0 - w) * e * e / (s * s)
-            cbb = max(cbb - f * sh0 * sh0, 0.0)  # rounding never makes a variance negative
-            cbn -= f * sh0 * sh1
-            cnn = max(cnn - f * sh1 * sh1, 0.0)
-        mean[i, 0], mean[i, 1] = b, e_n
-        cov[i, 0], cov[i, 1], cov[i, 2] = cbb, cbn, cnn
+            s = project(sig, h, sh) + r2[lev]
+            e = z_db[j] - z_shift[lev] - (base + dot(h, mu))
+            for a in range(kk):
+                mu[a] += w * e / s * sh[a]
+            narrow(sig, sh, w / s - w * (1.0 - w) * e * e / (s * s))
+        pack_gaussian(mu, sig, i, mean, cov)
     s1 = np.empty(n_levels)
     s2 = np.empty(n_levels)
     total = _reweight_levels(log_w, lik, s1, s2)

@@ -1,17 +1,22 @@
-"""What each particle believes about the radio it cannot see: a Gaussian over two unknowns.
+"""What each particle believes about the radio it cannot see: a Gaussian over two or three
+unknowns.
 
 Frame: local ENU metres about home (x east, y north, z up; tags on the ground at z = 0); yaw is
 a compass heading in radians, as in :mod:`core.radio`.
 
 Given a tag position, the log-distance model is linear in the unknowns ``theta = (b, n)``: the
 tag's received-power offset ``b`` (transmit power, antenna mean gain) and the path-loss
-exponent ``n``::
+exponent ``n``; with an uncertain antenna (``front_back_std_db``) also ``c``, the change of
+half the front-to-back ratio, whose regressor is the mission's pattern's shape::
 
-    P(x, u) = P0 + g(x, u) + [1, l(x, u)] theta,     l = -10 log10(max(d, d_min) / d0)
+    P(x, u) = P0 + g(x, u) + [1, l(x, u), a(x, u)] theta,
+    l = -10 log10(max(d, d_min) / d0),     a = (cos(dpsi) - 1) cos(elev)
 
-so each particle carries a Gaussian ``N(mu, Sigma)`` over theta and the filter stays a particle
-filter over position only: a Rao-Blackwellised particle filter (Doucet et al. 2000). Per
-particle and pulse this costs a 2-state Kalman step, in one compiled pass over the particles
+(dpsi the tag's bearing from the nose, elev its depression angle), so each particle carries a
+Gaussian ``N(mu, Sigma)`` over theta and the filter stays a particle filter over position
+only: a Rao-Blackwellised particle filter (Doucet et al. 2000). ``c`` shows only where the tag
+is seen ahead and behind; on an orbit about the tag it stays at its prior. Per
+particle and pulse this costs a 2- or 3-state Kalman step, in one compiled pass over the particles
 (:func:`core.filter_kernels.robust_update`); this module holds the beliefs, the shadowing
 memory and the neighbour conditioning shared by every particle.
 
@@ -75,7 +80,8 @@ memory and the neighbour conditioning shared by every particle.
   again and again: in the field world the claims held for 0.86 (docs/localisation.md).
 
 With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
-Covariances are stored as their three unique entries ``[bb, bn, nn]``.
+Covariances are stored as their unique entries, packed (:func:`packed_index`): ``[bb, bn,
+nn]``, then ``[bc, nc, cc]``. The formulas below write ``H~`` for the row of regressors.
 """
 
 from __future__ import annotations
@@ -118,9 +124,14 @@ class RadioUncertainty:
     model_error_std_db: tuple[float, ...] = (0.0,)
     """Hypotheses about uncorrelated model error added to the receiver noise (fading,
     antenna pattern error), dB; see shadowing_std_db."""
+    front_back_std_db: float = 0.0
+    """Prior std of the antenna's front-to-back ratio about the mission's, dB (an airframe
+    changes it): theta gains ``c``, half the change, with the regressor ``(cos(dpsi) - 1)
+    cos(elev)`` (the mission's pattern's shape). 0: the mission's pattern is trusted and
+    theta is (b, n)."""
 
     def __post_init__(self) -> None:
-        for name in ("p0_std_db", "path_loss_exponent_std"):
+        for name in ("p0_std_db", "path_loss_exponent_std", "front_back_std_db"):
             if not (getattr(self, name) >= 0.0 and math.isfinite(getattr(self, name))):
                 raise EstimationError(f"{name} must be finite and >= 0 (got {getattr(self, name)})")
         for name in ("shadowing_std_db", "model_error_std_db"):
@@ -139,10 +150,16 @@ class RadioUncertainty:
         return tuple((s, m) for s in self.shadowing_std_db for m in self.model_error_std_db)
 
     @property
+    def n_unknowns(self) -> int:
+        """K, the entries of theta: (b, n), or (b, n, c) with an unknown front-back ratio."""
+        return 3 if self.front_back_std_db > 0.0 else 2
+
+    @property
     def active(self) -> bool:
         """True if anything differs from the classic model."""
         return (self.p0_std_db > 0.0 or self.path_loss_exponent_std > 0.0
-                or self.outlier_prob > 0.0 or any(s > 0.0 or m > 0.0 for s, m in self.levels))
+                or self.front_back_std_db > 0.0 or self.outlier_prob > 0.0
+                or any(s > 0.0 or m > 0.0 for s, m in self.levels))
 
 
 @dataclass(frozen=True, slots=True)
@@ -156,8 +173,9 @@ class TagRadioPrior:
 
 @dataclass(slots=True)
 class RadioBelief:
-    """Per-particle Gaussians over theta = (b, n): ``mean (N, 2)``, ``cov (N, 3)``, and each
-    particle's roughness level ``level (N,) int8`` (fixed by its slot)."""
+    """Per-particle Gaussians over theta: ``mean (N, K)``, ``cov (N, K (K + 1) / 2)`` packed
+    (:func:`packed_index`), and each particle's roughness level ``level (N,) int8`` (fixed by
+    its slot)."""
 
     mean: FloatArray
     cov: FloatArray
@@ -176,15 +194,29 @@ class RadioBelief:
         self.mean[rows], self.cov[rows] = _prior_rows(radio, unc, tag)
 
 
+def packed_index(i: int, j: int) -> int:
+    """Where entry (i, j) of a symmetric K x K covariance lies in its packed row: the upper
+    triangle column by column, ``j (j + 1) / 2 + i`` for i <= j. The first three entries are
+    ``[bb, bn, nn]`` whatever K, so the (b, n) block reads the same for K = 2 and K = 3."""
+    if i > j:
+        i, j = j, i
+    return j * (j + 1) // 2 + i
+
+
 def _prior_rows(radio: RadioModel, unc: RadioUncertainty, tag: TagRadioPrior | None
                 ) -> tuple[FloatArray, FloatArray]:
-    """One particle's prior (b, n) mean (2,) and covariance (3,) ``[bb, bn, nn]``."""
+    """One particle's prior theta mean (K,) and packed covariance (K (K + 1) / 2,)."""
     tag = tag or TagRadioPrior()
     std_b = unc.p0_std_db if tag.std_db is None else tag.std_db
-    cov = np.zeros(3)
+    k = unc.n_unknowns
+    mean = np.zeros(k)
+    mean[0], mean[1] = tag.offset_db, radio.path_loss_exponent
+    cov = np.zeros(k * (k + 1) // 2)
     cov[BB] = std_b**2
     cov[NN] = unc.path_loss_exponent_std**2
-    return np.array([tag.offset_db, radio.path_loss_exponent]), cov
+    if k > 2:
+        cov[packed_index(2, 2)] = (0.5 * unc.front_back_std_db) ** 2
+    return mean, cov
 
 
 SHADOW_NEIGHBOURS = 12

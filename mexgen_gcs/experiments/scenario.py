@@ -156,7 +156,8 @@ class Scenario:
     estimator: str = "classic"
     """"classic": the filter trusts the radio model exactly (the paper's simulations);
     "robust": the mission defaults' radio unknowns (power offset and path-loss exponent per
-    tag, shadowing and model-error hypotheses, outliers; docs/localisation.md)."""
+    tag, the antenna's front-to-back ratio, shadowing and model-error hypotheses, outliers;
+    docs/localisation.md)."""
 
     @property
     def label(self) -> str:

@@ -177,8 +177,9 @@ def settings_lines(ident: dict[str, Any], kind: str) -> list[str]:
     reality, estimator = g("reality", "matched"), g("estimator", "classic")
     where = "the mission model itself" if reality == "matched" else "docs/localisation.md"
     how = ("trusts the radio model exactly" if estimator == "classic" else
-           "each tag's power offset and path-loss exponent estimated with the position, "
-           "shadowing and model-error hypotheses, outlier mixture")
+           "each tag's power offset and path-loss exponent and the antenna's front-to-back "
+           "ratio estimated with the position, shadowing and model-error hypotheses, "
+           "outlier mixture")
     out.append(f"- Radio world: reality profile `{reality}` ({where}); estimator "
                f"`{estimator}` ({how}).")
     if kind == "localise":

@@ -114,6 +114,60 @@ def test_hovering_does_not_pretend_to_know_the_offset():
     assert var_b > 0.5 * 16.0 * 36.0 / (16.0 + 36.0)
 
 
+def _star(k: int) -> tuple[np.ndarray, float]:
+    """Straight passes through a point 20 m from the tag on eight headings, 400 m either side
+    at 10 m/s and 50 m up: the tag ahead, abeam and behind in turn, so the front-to-back
+    ratio shows apart from the range."""
+    heading = (k // 80) % 8 * math.pi / 4 + 0.3
+    along = -400.0 + 10.0 * (k % 80)
+    d = np.array([math.sin(heading), math.cos(heading)])
+    pos = TAG + np.array([20.0, 0.0]) + along * d
+    return np.array([pos[0], pos[1], 50.0]), heading
+
+
+def _star_flight(world: RadioModel, unknowns: RadioUncertainty, seed: int) -> BernoulliFilter:
+    f = BernoulliFilter(make_motion_model("static"), RADIO, AREA,
+                        FilterConfig(radio_unknowns=unknowns, n_particles=1000),
+                        np.random.default_rng(seed))
+    rng = np.random.default_rng(seed + 100)
+    for k in range(1280):
+        rx, yaw = _star(k)
+        p = world.power_db(TAG, rx, yaw)
+        f.predict(1.0)
+        f.update(np.array([float(world.measure(p, rng))] if world.detect(np.array(p), rng)
+                          else []), rx, yaw)
+    return f
+
+
+@pytest.mark.parametrize(("front_back_db", "seed"), [(7.0, 0), (0.0, 1)])
+def test_a_survey_recovers_the_antennas_front_to_back_ratio(front_back_db, seed):
+    """The world's antenna loses 7 dB (or nothing) towards the tail, the mission's model 3:
+    theta's third entry c, half the change, is learnt from passes on eight headings."""
+    f = _star_flight(RadioModel(front_back_db=front_back_db),
+                     RadioUncertainty(p0_std_db=4.0, front_back_std_db=4.0), seed)
+    b = f.radio_belief
+    assert b is not None and b.mean.shape[1] == 3 and b.cov.shape[1] == 6
+    w = np.exp(f.log_w)
+    c = float(w @ b.mean[:, 2])
+    assert 2.0 * c == pytest.approx(front_back_db - RADIO.front_back_db, abs=1.0)
+    est = f.estimate()
+    assert est.p0_offset_db == pytest.approx(0.0, abs=1.0)
+    assert math.dist(est.mean[:2], TAG) < 15.0
+
+
+def test_a_front_to_back_ratio_known_to_a_nanodecibel_is_the_two_unknown_filter():
+    """theta = (b, n, c) with c's prior std 1e-9 dB makes the same weights and (b, n) beliefs
+    as theta = (b, n): the three-unknown kernel adds a regressor and nothing else."""
+    world = RadioModel()
+    a = _star_flight(world, UNKNOWN, 5)
+    b = _star_flight(world, RadioUncertainty(p0_std_db=4.0, path_loss_exponent_std=0.3,
+                                             outlier_prob=0.05, front_back_std_db=1e-9), 5)
+    assert a.radio_belief is not None and b.radio_belief is not None
+    np.testing.assert_allclose(b.log_w, a.log_w, atol=1e-9)
+    np.testing.assert_allclose(b.radio_belief.mean[:, :2], a.radio_belief.mean, atol=1e-9)
+    np.testing.assert_allclose(b.radio_belief.cov[:, :3], a.radio_belief.cov, atol=1e-9)
+
+
 def test_nothing_unknown_is_the_classic_filter():
     a = BernoulliFilter(make_motion_model("static"), RADIO, AREA, FilterConfig(),
                         np.random.default_rng(3))
