@@ -60,10 +60,24 @@ class SitlPorts:
         return cls(free_udp_port(), free_udp_port())
 
 
+_FREE_PORTS = (20000, 32000)
+"""Free ports are picked here, below Linux's ephemeral range (32768-60999): a port the kernel
+chose (bind to 0) is handed again to any process's unbound socket once released, and a CI run
+with two workers flying side by side lost its radio port that way between pick and bind."""
+_PORT_RNG = np.random.default_rng()
+
+
 def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A UDP port on loopback that was free a moment ago, outside the ephemeral range."""
+    for _ in range(500):
+        port = int(_PORT_RNG.integers(*_FREE_PORTS))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise OSError(f"no free UDP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
 
 
 def apply_overrides(mission: Any, overrides: Mapping[str, Any] | None) -> Any:

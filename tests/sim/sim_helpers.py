@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from mexgen_gcs.mission.run import free_udp_port as run_free_udp_port
+
 # pymavlink's mavutil picks MAVLink 1 or 2 from this variable when it is imported (or when
 # mavutil.set_dialect is called); the simulator speaks MAVLink 2.
 os.environ["MAVLINK20"] = "1"
@@ -32,10 +34,9 @@ STOP_TIMEOUT_S = 15.0
 
 
 def free_udp_port() -> int:
-    """A UDP port that was free a moment ago (for clients that must bind it themselves)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A UDP port that was free a moment ago (for clients that must bind it themselves),
+    outside the kernel's ephemeral range (:func:`mexgen_gcs.mission.run.free_udp_port`)."""
+    return run_free_udp_port()
 
 
 def udp_socket(timeout_s: float = 0.5) -> socket.socket:
