@@ -67,9 +67,6 @@ COLLAPSED_RADIUS_M = 1e-3
 """A radius below this is a cloud of one particle's copies (every weight on one ancestor;
 roughening adds nothing where the copies do not spread), not a posterior: it claims nothing
 (its radius, rounding of 0, says nothing about where the tag is)."""
-LEVEL_CLAIM_MASS = 0.05
-"""A roughness level with at least this posterior probability must agree with a claimed
-localisation radius (about the reported position)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -304,11 +301,8 @@ class BernoulliFilter:
         mass, spread = out[11:11 + step], out[11 + step:11 + 2 * step]
         tr = float(cov[0, 0] + cov[1, 1])
         radius = self.config.radius_from_trace(tr)
-        if step > 1:  # the claim must hold under every plausible roughness level
-            plausible = mass >= LEVEL_CLAIM_MASS
-            if plausible.any():
-                tr_l = float((spread[plausible] / mass[plausible]).max())
-                radius = max(radius, self.config.radius_from_trace(tr_l))
+        if step > 1:  # the bank's own radius: each roughness level a Gaussian of its spread
+            radius = mixture_radius(mass, spread, 1.0 - self.config.localised_confidence)
         localised = (
             radius <= self.config.localised_radius_m
             and self.existence >= self.config.localised_min_existence
@@ -392,6 +386,36 @@ def posterior_existence(existence: float, log_mean_l: float) -> float:
 
 
 _NO_RADIO = np.zeros((0, 2))
+
+
+@kernel
+def mixture_radius(mass: FloatArray, spread: FloatArray, tail: float) -> float:
+    """The radius R (m) about the reported position that holds all but ``tail`` of a bank of
+    roughness levels, each level a circular Gaussian about that position with its own trace
+    (level l: weight ``mass[l]``, weighted squared distance ``spread[l]``, so trace
+    t_l = spread_l / mass_l): sum_l m_l exp(-R^2 / t_l) = tail with m normalised. One level
+    gives the trace radius sqrt(-ln(tail) t); the sum decreases in R^2, so bisection on R^2
+    within [0, -ln(tail) max t] (60 halvings, to machine precision)."""
+    total = 0.0
+    t_max = 0.0
+    for lev in range(mass.shape[0]):
+        if mass[lev] > 0.0:
+            total += mass[lev]
+            t_max = max(t_max, spread[lev] / mass[lev])
+    if total <= 0.0 or t_max <= 0.0:
+        return 0.0
+    lo, hi = 0.0, -math.log(tail) * t_max
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        acc = 0.0
+        for lev in range(mass.shape[0]):
+            if mass[lev] > 0.0:
+                acc += mass[lev] * math.exp(-mid * mass[lev] / max(spread[lev], 1e-300))
+        if acc > tail * total:
+            lo = mid
+        else:
+            hi = mid
+    return math.sqrt(hi)
 
 
 @kernel
