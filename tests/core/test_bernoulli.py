@@ -277,9 +277,9 @@ def test_estimate_is_the_weighted_moments_of_the_particles(robust):
 
 def test_the_bank_radius_holds_its_share_of_the_levels():
     """With roughness levels the claimed 95 % radius is the bank's: a level of 6 % weight and
-    twice the spread widens it a little, not to its own radius (the claim used to wait until
-    such a level fell below 5 % of the weight). One level: the trace radius. Draws from
-    the levels' Gaussians about the reported position fall inside it at 0.95."""
+    four times the trace (twice the radius) widens it, not to its own radius (the claim used
+    to wait until such a level fell below 5 % of the weight). One level: the trace radius.
+    Draws from the levels' Gaussians about the reported position fall inside it at 0.95."""
     cfg = FilterConfig()
     one = mixture_radius(np.array([1.0]), np.array([400.0]), 0.05)
     assert one == pytest.approx(cfg.radius_from_trace(400.0), rel=1e-12)
