@@ -29,7 +29,7 @@ import numpy as np
 
 from sim import px4_modes
 
-#: SYSTEM_TIME values below this (2001-09-09) mean "not set".
+#: SYSTEM_TIME values below this (10^9 s after the unix epoch) mean "not set".
 MIN_VALID_UNIX_S = 1.0e9
 #: Pose samples kept, vehicle seconds.
 HISTORY_S = 60.0

@@ -38,7 +38,7 @@ from typing import Protocol
 
 import numpy as np
 
-#: SYSTEM_TIME values below this (2001-09-09) mean "not set" (no GPS time yet).
+#: SYSTEM_TIME values below this (10^9 s after the unix epoch) mean "not set" (no GPS time yet).
 MIN_VALID_UNIX_S = 1.0e9
 
 
