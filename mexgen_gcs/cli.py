@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "planner; field: the mission defaults (3 dB antenna, -60 dB sensitivity)")
     p.add_argument("--reality", choices=REALITIES, default="matched",
                    help="how the radio world differs from the mission's model "
-                   "(docs/localisation.md); default: matched")
+                   "(docs/results/localisation.md); default: matched")
     p.add_argument("--estimator", choices=ESTIMATORS, default="classic",
                    help="classic: trusts the radio model (the paper's); robust: estimates each "
                    "tag's power offset and path-loss exponent and the antenna's front-to-back "

@@ -7,6 +7,7 @@ as WGS84 lat/lon degrees.
 
 from __future__ import annotations
 
+import enum
 import json
 import types
 import typing
@@ -207,5 +208,7 @@ def _type_text(annotation: Any) -> str:
         return "[" + ", ".join(_type_text(a) for a in args) + "]"
     if isinstance(annotation, type) and issubclass(annotation, BaseModel):
         return "mapping"
+    if isinstance(annotation, type) and issubclass(annotation, enum.Enum):
+        return " | ".join(str(member.value) for member in annotation)
     return {float: "number", int: "integer", str: "text", bool: "true | false"}.get(
         annotation, str(annotation))

@@ -323,7 +323,7 @@ class FilterSection(Section):
         0.2, ge=0.0, le=10.0,
         description="Roughening constant after resampling (jitter std k x range x N^(-1/D)). "
         "The robust estimator's claims hold at 0.2 but not far from it (0.22 of claims held "
-        "at 0.3 in the matched world; docs/localisation.md): change it only with a study.")
+        "at 0.3 in the matched world; docs/results/localisation.md): change it only with a study.")
 
     @model_validator(mode="after")
     def _speeds(self) -> FilterSection:

@@ -162,7 +162,7 @@ class SimSection(Section):
     reality: Literal["matched", "tx-power", "path-loss", "antenna", "shadowing", "fading",
                      "terrain", "compass", "field"] = Field(
         "matched", description="How the simulated radio differs from the mission's radio model "
-        "(a reality profile, see docs/localisation.md); matched = exactly the model.")
+        "(a reality profile, see docs/results/localisation.md); matched = exactly the model.")
     battery_endurance_s: Float = Field(1800.0, gt=0.0, le=86_400.0,
                                        description="Full to empty in flight, seconds.")
     faults: tuple[Fault, ...] = Field((), max_length=1000,

@@ -129,7 +129,8 @@ def miss_moments(mean_db: float, q_db2: float, rest_db2: float, miss: float, p: 
     rest)) (the power below the threshold). Returns (shift of u's mean / q, change of its
     variance / q^2): what the Kalman form needs, with no division by a small q.
     Misses are most pulses where detection is uncertain: without this each miss would be
-    scored against the same prior of (b, n) and a weak tag read as far (docs/localisation.md)."""
+    scored against the same prior of (b, n) and a weak tag read as far
+    (docs/results/localisation.md)."""
     d2 = p.detection_spread2_db2 + rest_db2 + q_db2
     d = np.sqrt(d2)
     x = (mean_db - p.sensitivity_db) / d
@@ -191,7 +192,7 @@ def correlated_miss(pred_db: float, vp_db2: float, shadow_db2: float, k: float, 
     the pulse whatever the shadowing still pays 1 - pd_max for each (those losses are
     independent). k is a count weighted by correlation, so this treats the earlier misses as
     if at this pulse's shadowing and geometry: an approximation of the censored Gaussian
-    field, measured in docs/localisation.md.
+    field, measured in docs/results/localisation.md.
 
     The answer is a mean of the nodes' a under weights tilted towards large a, so it lies
     between the untilted mean and the largest a. ``miss`` (the marginal 1 - pD) is returned

@@ -77,7 +77,7 @@ memory and the neighbour conditioning shared by every particle.
   (:func:`core.filter_kernels.correlated_miss`; K = 0 is ``1 - pD``), and its step of the
   Gaussian is divided by ``1 + K``. Without this, a flight through one weak patch punished
   every place near the threshold once per pulse, and taught the Gaussian the same miss
-  again and again: in the field world the claims held for 0.86 (docs/localisation.md).
+  again and again: in the field world the claims held for 0.86 (docs/results/localisation.md).
 
 With every uncertainty zero this is exactly the classic model of :mod:`core.radio`.
 Covariances are stored as their unique entries, packed (:func:`packed_index`): ``[bb, bn,
@@ -225,7 +225,7 @@ cells are noisy (receiver noise and fading on each pulse), and a nearest-neighbo
 approximation conditioned on noisy responses needs more neighbours than one on the field
 itself (Katzfuss and Guinness 2021); with 6 each pulse looked more independent than it is: in
 1000 field-world surveys the claims held for 0.86 and the final radii for 0.88, with 12 for
-0.96 and 0.97 (tests/core/test_calibration.py, docs/localisation.md)."""
+0.96 and 0.97 (tests/core/test_calibration.py, docs/results/localisation.md)."""
 CELL_M = 5.0
 """Detections within this distance (and CELL_YAW_RAD of heading) share a memory cell."""
 CELL_YAW_RAD = math.radians(30.0)

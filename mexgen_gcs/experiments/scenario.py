@@ -157,7 +157,7 @@ class Scenario:
     """"classic": the filter trusts the radio model exactly (the paper's simulations);
     "robust": the mission defaults' radio unknowns (power offset and path-loss exponent per
     tag, the antenna's front-to-back ratio, shadowing and model-error hypotheses, outliers;
-    docs/localisation.md)."""
+    docs/results/localisation.md)."""
 
     @property
     def label(self) -> str:

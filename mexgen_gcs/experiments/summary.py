@@ -175,7 +175,7 @@ def settings_lines(ident: dict[str, Any], kind: str) -> list[str]:
                f"{g('filter_particles')}); MexGen {g('mexgen_samples')} samples, MC "
                f"{g('mc_rollouts')} rollouts.")
     reality, estimator = g("reality", "matched"), g("estimator", "classic")
-    where = "the mission model itself" if reality == "matched" else "docs/localisation.md"
+    where = "the mission model itself" if reality == "matched" else "docs/results/localisation.md"
     how = ("trusts the radio model exactly" if estimator == "classic" else
            "each tag's power offset and path-loss exponent and the antenna's front-to-back "
            "ratio estimated with the position, shadowing and model-error hypotheses, "

@@ -2,7 +2,7 @@
 one tag, a fixed inward spiral flown over it (the same flight whatever the estimate), many
 seeded worlds, and the share of radii that held the tag, with its Wilson interval. The quick
 check runs in the default tests; ``-m slow`` runs the 1000-survey study quoted in
-docs/localisation.md.
+docs/results/localisation.md.
 
 Frame: local ENU metres about home (the experiment world's)."""
 
@@ -110,7 +110,7 @@ def test_misses_teach_the_estimator_where_detection_is_uncertain():
     once (core.filter_kernels.correlated_miss). 48 field-world surveys, on the machine that
     wrote this: the final radii held for 48 and 8 of 8 claims (32 and no claim when misses
     moved only the weights; 38 and 7 of 10 when each miss counted in full; over 400
-    surveys: docs/localisation.md)."""
+    surveys: docs/results/localisation.md)."""
     cov = survey_coverage("field", range(48), preset="field")
     assert cov.final_inside >= 44, cov
     assert cov.claims >= 4 and cov.claims_inside >= cov.claims - 1, cov
@@ -128,7 +128,7 @@ def test_the_final_radius_holds_in_the_matched_world():
 @pytest.mark.timeout(3600)  # 0.4-1.2 s a survey, by machine
 @pytest.mark.parametrize("reality", ["matched", "shadowing", "field"])
 def test_survey_study(reality):
-    """The study in docs/localisation.md (1000 surveys per world)."""
+    """The study in docs/results/localisation.md (1000 surveys per world)."""
     cov = survey_coverage(reality, range(1000, 2000))
     low, high = cov.final_interval()
     claims = cov.claims_inside / max(cov.claims, 1)
@@ -140,7 +140,8 @@ def test_survey_study(reality):
 @pytest.mark.slow
 @pytest.mark.timeout(1200)
 @pytest.mark.xfail(strict=True, reason=(
-    "open (docs/localisation.md, 'An antenna the model does not know, on a long orbit'): an "
+    "open (docs/results/localisation.md, 'An antenna the model does not know, on a long "
+    "orbit'): an "
     "error that repeats with the geometry is read as a place, and the radius keeps shrinking"))
 def test_the_final_radius_after_a_long_orbit_with_an_unmodelled_antenna():
     """A known failure, kept (strict: it must fail) so that it says when it is fixed: 200

@@ -46,7 +46,7 @@ def test_demo_mission_completes_under_hostile_datagrams(tmp_path):
     sprayed at the radio port: only the reject counters change.
 
     Near: within 1.5 times the claimed 95 % radius. Whether the claim itself holds is a rate
-    (0.95-0.97 of tags in the experiments, docs/localisation.md), so one flight's four tags
+    (0.95-0.97 of tags in the experiments, docs/results/localisation.md), so one flight's four tags
     all inside it happen ~89 % of the time (one CI run: 50.7 m against a claim of 47.1 m);
     1.5 claims (3.7 sigma of an honest Gaussian estimate) fails an honest flight once in
     ~200 and still catches a claim that is wrong."""
@@ -135,7 +135,7 @@ def test_moving_tag_is_followed(tmp_path):
     none), not the radius's coverage:
     one flight's errors are correlated over its last minute, and whether a claimed radius
     holds is a statistical question, measured over many runs by the experiments
-    (docs/localisation.md). The classic estimator: this tests the frames."""
+    (docs/results/localisation.md). The classic estimator: this tests the frames."""
     result = run_sitl(MISSIONS / "follow_cv.yaml", seed=2, speedup=SPEEDUP,
                       ports=SitlPorts.free(), log_dir=tmp_path,
                       overrides={"follow.duration_s": 200.0, "home.alt_m": 350.0,
@@ -163,7 +163,7 @@ def test_field_world_claims_hold(tmp_path):
     """The demo flown in the simulator's field world (every reality cause at once: transmit
     power, exponent, antenna, shadowing, fading, terrain, compass bias), a static filter: no
     tag it calls localised is grossly outside its claimed radius. Seed 2 put a tag 243 m
-    from a 48 m claim (5x) while each miss counted in full (docs/localisation.md).
+    from a 48 m claim (5x) while each miss counted in full (docs/results/localisation.md).
 
     One flight cannot assert a 95 % radius per claim: one claim in twenty may lie outside
     it, and these flights are not reproducible (the GCS and the simulator share the cores in
@@ -171,7 +171,7 @@ def test_field_world_claims_hold(tmp_path):
     s where the log was kept; none in one of 1200 s), and 1 of the 12 lay outside (52.9 m
     against 49.6 m); over seeds 0-9, 1 of 7 (59.5 m against 47.5 m, 1.25x). The coverage is
     asserted with statistics in tests/core/test_calibration.py and measured over flights
-    and experiment runs in docs/localisation.md. The last estimates of the tags not
+    and experiment runs in docs/results/localisation.md. The last estimates of the tags not
     localised hold for ~0.9 (a rate, not asserted per flight)."""
     result = run_sitl(MISSIONS / "demo.yaml", seed=2, speedup=SPEEDUP, ports=SitlPorts.free(),
                       log_dir=tmp_path, overrides={"sim.reality": "field",
