@@ -133,3 +133,14 @@ def test_nothing_refers_outside_the_repository() -> None:
     assert files <= KNOWN_ELSEWHERE, [h for h in hits if h.split(":", 1)[0] not in
                                       KNOWN_ELSEWHERE]
     assert files == KNOWN_ELSEWHERE, f"fixed: remove {KNOWN_ELSEWHERE - files} from the list"
+
+
+def test_only_results_carry_dates_and_commits() -> None:
+    """Concepts, reference and guides say what is true now; when and on which commit something
+    was measured belongs to docs/results/."""
+    pages = [p for p in _markdown() if p.parent != DOCS / "results" and p.name != "CHANGELOG.md"]
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        assert not re.search(r"\b20\d\d-\d\d-\d\d\b", text), f"{page.relative_to(REPO)}: a date"
+        assert not re.search(r"\bcommits? [0-9a-f]{7,40}\b", text), (
+            f"{page.relative_to(REPO)}: a commit")
