@@ -234,7 +234,7 @@ class MissionController:
         observe = getattr(ctx.clock, "observe", None)
         if observe is not None:
             hub.on_time.append(observe)
-        tg.create_task(bg.contained(ctx, "telemetry", ctx.vehicle.run_telemetry, restarts=3),
+        tg.create_task(bg.contained(ctx, "telemetry", lambda: bg.telemetry(ctx), restarts=3),
                        name="telemetry")
         tg.create_task(bg.contained(ctx, "telemetry-log", lambda: bg.telemetry_log(ctx),
                                     restarts=3), name="telemetry-log")
