@@ -93,6 +93,8 @@ class MissionContext:
         self.link_was_lost = False
         self.landed_ok = False
         self.armed_by_us = False
+        self.escalated = False
+        """A stop that could not be obeyed: the mission exits without commanding more."""
         # times (mission clock)
         self.t_start = clock.now()
         self.t_airborne: float | None = None

@@ -109,6 +109,8 @@ class MissionController:
         sink.on_loss = lambda text: self.ctx.events.append(f"flight log: {text}")
         self.planner = MissionPlanner(mission)
         self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
+        self.result: MissionResult | None = None
+        """The result, once ``run`` has ended (also when it was cancelled)."""
 
     # -- public ------------------------------------------------------------------------------
 
@@ -127,6 +129,16 @@ class MissionController:
             self.ctx.commands.put_nowait(command)
         except asyncio.QueueFull:
             self.ctx.event("command_dropped", level=logging.WARNING, command=command)
+
+    def escalate(self, why: str) -> None:
+        """A stop request that cannot be obeyed (a second stop signal while the vehicle does
+        not answer): logged, nothing more is commanded, and the end reason says so. The
+        caller then cancels ``run``, which writes the result record."""
+        ctx = self.ctx
+        ctx.escalated = True
+        ctx.event("signal_repeated", level=logging.ERROR, why=why, phase=ctx.phase,
+                  note="exiting now without waiting for the vehicle")
+        ctx.end_reason = EndReason.SIGNAL_REPEATED
 
     async def run(self) -> MissionResult:
         """Fly the mission to its result. Cancelled (the caller's task group, an app closing):
@@ -153,6 +165,7 @@ class MissionController:
         ctx.state = MissionState.DONE
         result = views.build_result(ctx)
         self._final_records(result)
+        self.result = result
         if cancelled is not None:
             raise cancelled
         return result
@@ -176,7 +189,7 @@ class MissionController:
         ctx.set_end(EndReason.CANCELLED)
         ctx.event("cancelled", level=logging.WARNING, phase=ctx.phase)
         if not (ctx.armed_by_us and ctx.commander.in_control and not ctx.landed_ok
-                and ctx.commander.may_be_armed()):
+                and ctx.commander.may_be_armed()) or ctx.escalated:
             return
         land = (ctx.stop is not None and ctx.stop.operator
                 and ctx.stop.action is ReturnAction.LAND)
