@@ -21,6 +21,7 @@ from mexgen_gcs.config.schema import (
     Home,
     KeyPath,
     Localisation,
+    LogSection,
     Planner,
     RadioSection,
     Receiver,
@@ -60,6 +61,7 @@ class Mission(Section):
                                        description="When a tag is localised.")
     follow: Follow | None = Field(None, description="Required when kind = follow.")
     safety: Safety = Field(default_factory=Safety, description="Limits and failsafes.")
+    log: LogSection = Field(default_factory=LogSection, description="The flight log.")
     sim: SimSection = Field(default_factory=SimSection, description="Simulator only.")
 
     _source_path: str | None = PrivateAttr(default=None)

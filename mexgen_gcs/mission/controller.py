@@ -102,7 +102,8 @@ class MissionController:
         options: ControllerOptions | None = None,
         truth: Callable[[], dict[str, tuple[float, float]]] | None = None,
     ) -> None:
-        sink = flight_log if isinstance(flight_log, MissionLog) else MissionLog(flight_log)
+        sink = flight_log if isinstance(flight_log, MissionLog) else MissionLog(
+            flight_log, fsync_every_s=mission.log.fsync_every_s)
         self.ctx = MissionContext(mission, vehicle, receiver, clock, core, sink, method=method,
                                   rng=rng, connect_url=connect_url,
                                   options=options or ControllerOptions(), truth=truth)
@@ -165,6 +166,7 @@ class MissionController:
         ctx.state = MissionState.DONE
         result = views.build_result(ctx)
         self._final_records(result)
+        ctx.log.close()  # drains the writer thread (bounded): the result record is on disk
         self.result = result
         if cancelled is not None:
             raise cancelled

@@ -252,6 +252,7 @@ def test_writer_checks_each_record_against_its_documented_type(tmp_path: Path) -
         assert sink.write("plan", method="pim")  # no headings, rewards, ...
         assert sink.write("plan", method="pim")
         assert sink.write("future_type", anything=1)  # unknown types are kept, not invalid
+        sink.close()  # written by the sink's thread: drained here
     assert dict(w.invalid) == {"invalid plan record": 2} and w.records == 4
     assert len(said) == 1 and "'plan' record does not match" in said[0]
     assert len((tmp_path / "f.jsonl").read_text().splitlines()) == 4
