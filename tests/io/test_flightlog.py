@@ -100,6 +100,7 @@ def test_refuses_to_overwrite(tmp_path: Path, mission) -> None:
         FlightLogWriter(tmp_path / "f", mission)
 
 
+@pytest.mark.long  # a Python subprocess
 def test_crash_mid_flight_loses_at_most_the_last_line(tmp_path: Path) -> None:
     """A real process writes records and is killed; the log reads back without the torn tail."""
     log_dir = tmp_path / "crash"

@@ -14,6 +14,8 @@ from mexgen_gcs.errors import MexgenError
 from mexgen_gcs.mission import run
 from mexgen_gcs.mission.run import SitlPorts, _wait_for_ready_line
 
+pytestmark = pytest.mark.long  # stand-in Python processes
+
 HANG_MID_LINE = "import sys, time; sys.stdout.write('sim rea'); sys.stdout.flush(); time.sleep(60)"
 
 

@@ -66,6 +66,7 @@ def _compiles(proc: subprocess.Popen[str]) -> int:
     return int(out.split()[-1])
 
 
+@pytest.mark.long  # two Python processes compiling every kernel from an empty cache
 @pytest.mark.timeout(900)
 def test_after_warm_up_a_flight_compiles_nothing(tmp_path):
     cold, warm = _start(tmp_path, "cold"), _start(tmp_path, "warm")  # side by side: 2 cores
