@@ -35,6 +35,7 @@ from mexgen_gcs.config.sim_schema import SimSection, SimTag
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
 from mexgen_gcs.core.geo import LocalFrame
+from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import RadioUncertainty, TagRadioPrior
@@ -269,6 +270,20 @@ class Mission(Section):
             localised_min_existence=loc.min_existence,
             radio_unknowns=self.radio_uncertainty(),
         )
+
+    def mission_core(self, rng: np.random.Generator, *, area: SearchArea | None = None,
+                     t0: float = 0.0, tight_radius_m: float | None = None) -> MissionCore:
+        """The mission's decision core: the one constructor the flight, the warm-up, the
+        experiments and replay share, so that what is measured is what flies. ``area``: the
+        filters' prior and birth region (default the search area; the experiments' initial
+        search space); ``t0``, ``tight_radius_m``: see :class:`core.mission_core.MissionCore`."""
+        return MissionCore(
+            self.tag_ids, self.filter_motion_model(), self.radio_model(),
+            self.search_area() if area is None else area, self.filter_config(), rng,
+            kind=self.kind, target_rule=self.planner.target,
+            follow_tag=self.follow.tag if self.follow is not None else None,
+            planning_particles=self.planner.n_particles, t0=t0,
+            tag_priors=self.tag_radio_priors(), tight_radius_m=tight_radius_m)
 
     def sim_tag(self, tag_id: str) -> SimTag:
         """The simulated truth of a mission tag: its sim.tags entry, or a static tag at a

@@ -3,9 +3,10 @@
 Frame: local ENU metres about the area centre (x east, y north, z up); headings are compass
 degrees (0 = north, clockwise).
 
-The decision logic is the code a flight runs: a ``MissionCore`` configured from the run's
-mission (``scenario.mission_for``) exactly as ``mission.run.build_core`` does, except that the
-filters' prior and births cover the scenario's initial search space; the planner is
+The decision logic is the code a flight runs: a ``MissionCore`` built from the run's mission
+(``scenario.mission_for``) by the flight's own constructor, ``config.Mission.mission_core``
+(per-tag radio priors included), except that the filters' prior and births cover the
+scenario's initial search space; the planner is
 ``core.planner.Planner`` with ``mission.planning.planner_config`` (what ``MissionPlanner``
 builds); the setpoints come from ``mission.guidance.velocity_setpoint`` (with the area guard).
 Time is simulated: no sockets, no sleeping, no clock read for decisions. Cadence, as the
@@ -108,12 +109,8 @@ def run_one(spec: RunSpec) -> RunResult:
     gcs = np.random.default_rng(seeds.gcs)
     radio_model = mission.radio_model()
     area = mission.search_area()
-    core = MissionCore(
-        mission.tag_ids, mission.filter_motion_model(), radio_model, sc.initial_area(),
-        mission.filter_config(), gcs.spawn(1)[0], kind=mission.kind,
-        target_rule=mission.planner.target,
-        follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, t0=0.0,
+    core = mission.mission_core(
+        gcs.spawn(1)[0], area=sc.initial_area(), t0=0.0,
         tight_radius_m=sc.tight_radius_m if sc.kind == "localise" else None)
     config = replace(planner_config(mission, planner_method), reach=sc.planner_reach,
                      outcome=sc.planner_outcome)  # type: ignore[arg-type]

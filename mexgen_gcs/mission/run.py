@@ -33,7 +33,6 @@ import numpy as np
 import yaml
 
 from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
-from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import ConfigError, LogFormatError, MexgenError
 from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
@@ -115,15 +114,6 @@ def make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: 
     return d
 
 
-def build_core(mission: Any, rng: np.random.Generator) -> MissionCore:
-    return MissionCore(
-        mission.tag_ids, mission.filter_motion_model(), mission.radio_model(),
-        mission.search_area(), mission.filter_config(), rng, kind=mission.kind,
-        target_rule=mission.planner.target,
-        follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors())
-
-
 async def fly_mission(
     mission: Any,
     *,
@@ -140,7 +130,7 @@ async def fly_mission(
     """Fly one mission with real ports. The caller owns any simulator process. ``runner``
     flies the controller with something attached (the terminal UI); default: headless."""
     rng = np.random.default_rng(seed)
-    core = build_core(mission, rng.spawn(1)[0])
+    core = mission.mission_core(rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now)
     with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
                          clock=clock.now) as flight_log:

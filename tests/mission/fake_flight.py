@@ -72,7 +72,6 @@ async def fly(log_dir: Any, vehicle: FakeVehicle | None = None, *, overrides: di
     from mexgen_gcs.io.clock import VehicleClock
     from mexgen_gcs.io.flightlog import FlightLogWriter, read_flight_log
     from mexgen_gcs.mission.controller import ControllerOptions, MissionController
-    from mexgen_gcs.mission.run import build_core
 
     mission = make_mission(overrides)
     vehicle = vehicle or FakeVehicle(mission.local_frame())
@@ -83,7 +82,7 @@ async def fly(log_dir: Any, vehicle: FakeVehicle | None = None, *, overrides: di
                                         clock_wait_s=5, takeoff_timeout_s=60,
                                         landing_timeout_s=300, print_progress=False)
     writer = FlightLogWriter(log_dir, mission, seed=1, method="mexgen", clock=clock.now)
-    controller = MissionController(mission, vehicle, receiver, clock, build_core(mission, rng),
+    controller = MissionController(mission, vehicle, receiver, clock, mission.mission_core(rng),
                                    wrap_log(writer) if wrap_log is not None else writer,
                                    method="mexgen", rng=rng, connect_url="fake://",
                                    options=opts)

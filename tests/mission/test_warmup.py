@@ -20,7 +20,6 @@ FLIGHT = textwrap.dedent("""
     from mexgen_gcs.core.planner import VehicleState
     from mexgen_gcs.mission.guidance import velocity_setpoint
     from mexgen_gcs.mission.planning import MissionPlanner
-    from mexgen_gcs.mission.run import build_core
     from mexgen_gcs.mission.warmup import warm_up
 
     mission = load_mission(sys.argv[1])
@@ -36,7 +35,7 @@ FLIGHT = textwrap.dedent("""
 
     ev.register("numba:compile", Compiles())
     rng = np.random.default_rng(7)
-    core = build_core(mission, rng)
+    core = mission.mission_core(rng)
     planner = MissionPlanner(mission)
     area = mission.search_area()
     for k in range(1, 41):  # 40 pulses on a circle, detections of every tag, plans every 5
