@@ -8,7 +8,7 @@ The decision logic is the code a flight runs: a ``MissionCore`` built from the r
 (per-tag radio priors included), except that the filters' prior and births cover the
 scenario's initial search space; the planner is
 ``core.planner.Planner`` with ``mission.planning.planner_config`` (what ``MissionPlanner``
-builds); the setpoints come from ``mission.guidance.velocity_setpoint`` (with the area guard).
+builds); the setpoints come from ``core.guidance.velocity_setpoint`` (with the area guard).
 Time is simulated: no sockets, no sleeping, no clock read for decisions. Cadence, as the
 controller's: plan at t = 0 on the prior; every pulse period the vehicle flies the current
 setpoint (recomputed every control period), the receiver measures every tag, the core runs
@@ -36,12 +36,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.mission_core import Localised, MissionCore
 from mexgen_gcs.core.planner import Planner, VehicleState
 from mexgen_gcs.experiments.scenario import Scenario, method_config, mission_for
 from mexgen_gcs.experiments.seeds import run_seeds
 from mexgen_gcs.experiments.world import PointMass, RadioWorld, reality_for, truth_for
-from mexgen_gcs.mission.guidance import velocity_setpoint
 from mexgen_gcs.mission.planning import planner_config
 
 FloatArray = NDArray[np.float64]

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from mexgen_gcs.core.generators import METHODS
+from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.planner import Planner, VehicleState
-from mexgen_gcs.mission.guidance import velocity_setpoint
 from mexgen_gcs.mission.planning import planner_config
 
 
