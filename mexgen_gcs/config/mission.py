@@ -34,9 +34,11 @@ from mexgen_gcs.config.schema import (
 from mexgen_gcs.config.sim_schema import SimSection, SimTag
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
+from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
+from mexgen_gcs.core.planner import PlannerConfig
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import RadioUncertainty, TagRadioPrior
 
@@ -270,6 +272,16 @@ class Mission(Section):
             localised_min_existence=loc.min_existence,
             radio_unknowns=self.radio_uncertainty(),
         )
+
+    def planner_config(self, method: str) -> PlannerConfig:
+        """The core planner's settings for ``method`` (the planner and flight sections): the
+        one place a flight, its warm-up, replay and the experiments get them."""
+        p = self.planner
+        return PlannerConfig(
+            method=method_name(method), samples=p.samples, mc_rollouts=p.mc_rollouts,
+            lookahead_s=p.lookahead_s, step_s=p.step_s, discount=p.discount, alpha=p.alpha,
+            speed_m_s=self.flight.speed_m_s, max_accel_m_s2=self.flight.max_accel_m_s2,
+            action_cost_weight=p.action_cost_weight)
 
     def mission_core(self, rng: np.random.Generator, *, area: SearchArea | None = None,
                      t0: float = 0.0, tight_radius_m: float | None = None) -> MissionCore:

@@ -24,7 +24,6 @@ import numpy as np
 from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.planner import Planner, VehicleState
-from mexgen_gcs.mission.planning import planner_config
 
 
 def warm_up(mission: Any) -> float:
@@ -45,7 +44,7 @@ def warm_up(mission: Any) -> float:
     if request is not None:  # the core planner, as the flight's planner worker runs it
         radio = mission.radio_model()
         for method in METHODS:
-            Planner(planner_config(mission, method), radio, area).plan(
+            Planner(mission.planner_config(method), radio, area).plan(
                 request.beliefs, request.vehicle, rng)
     velocity_setpoint(0.0, float(mission.flight.speed_m_s), (float(rx[0]), float(rx[1])),
                       float(rx[2]), float(rx[2]), area, 0.0)
