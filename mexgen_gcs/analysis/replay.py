@@ -27,8 +27,8 @@ from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.mission_core import MissionCore, PlanRequest
 from mexgen_gcs.core.planner import TagBelief, VehicleState
+from mexgen_gcs.io.plans import MissionPlanner
 from mexgen_gcs.io.records import Plan
-from mexgen_gcs.mission.planning import MissionPlanner
 
 
 def default_other_method(recorded: str) -> str:

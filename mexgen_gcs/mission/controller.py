@@ -51,6 +51,8 @@ import numpy as np
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import MexgenError
 from mexgen_gcs.io.clock import Clock
+from mexgen_gcs.io.plans import MissionPlanner
+from mexgen_gcs.io.snapshot import SnapshotBus
 from mexgen_gcs.io.vehicle import Vehicle
 from mexgen_gcs.mission import background as bg
 from mexgen_gcs.mission import views
@@ -58,8 +60,6 @@ from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.ingest import radio_ingest
 from mexgen_gcs.mission.logsink import MissionLog
 from mexgen_gcs.mission.phases import preflight, returning, search, takeoff
-from mexgen_gcs.mission.planning import MissionPlanner
-from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.mission.state import (
     ControllerOptions,
     EndReason,

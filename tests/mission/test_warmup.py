@@ -19,7 +19,7 @@ FLIGHT = textwrap.dedent("""
     from mexgen_gcs.core.generators import METHODS
     from mexgen_gcs.core.planner import VehicleState
     from mexgen_gcs.core.guidance import velocity_setpoint
-    from mexgen_gcs.mission.planning import MissionPlanner
+    from mexgen_gcs.io.plans import MissionPlanner
     from mexgen_gcs.mission.warmup import warm_up
 
     mission = load_mission(sys.argv[1])

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import pytest
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 from mexgen_gcs.ui.app import build_app, run_replay_async
 from mexgen_gcs.ui.replay_bar import ReplayBar
 from mexgen_gcs.ui.source import ReplaySource

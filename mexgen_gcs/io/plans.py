@@ -1,7 +1,9 @@
-"""The mission's planner worker: turns a MissionCore PlanRequest into a logged decision.
+"""The planner worker: turns a MissionCore PlanRequest into a decision as the flight log
+records it.
 
-Runs in the controller's single planner thread; it keeps one core Planner per method (each
-with its reusable workspace), so switching method in flight costs nothing after the first plan.
+A flight runs it in the controller's single planner thread, replay (analysis) in its own
+loop; it keeps one core Planner per method (each with its reusable workspace), so switching
+method in flight costs nothing after the first plan. It lives below both (no asyncio here).
 
 A decision has two forms: the core's `PlanResult` (arrays, inside the planner) and the flight
 log's `io.records.Plan`, which the log, the snapshots, the UI, analysis and replay all use.
