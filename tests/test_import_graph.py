@@ -143,8 +143,10 @@ LAYERS: dict[str, set[str]] = {
     "io": {"config", "core", "errors", "package"},
     "mission": {"io", "config", "core", "errors", "package"},
     "ui": {"mission", "io", "config", "core", "errors", "package"},
-    "analysis": {"mission", "io", "config", "core", "errors", "package"},
-    "experiments": {"mission", "config", "core", "errors", "package"},
+    # analysis and experiments use what a flight decides with (core, config, io), never the
+    # asyncio flight itself
+    "analysis": {"io", "config", "core", "errors", "package"},
+    "experiments": {"config", "core", "errors", "package"},
     "bench": {"experiments", "core", "config", "errors", "package"},
     "cli": {"config", "core", "errors", "package"},  # the other handlers: looked up by name
     "__main__": {"cli"},

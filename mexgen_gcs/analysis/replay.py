@@ -27,9 +27,8 @@ from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.mission_core import MissionCore, PlanRequest
 from mexgen_gcs.core.planner import TagBelief, VehicleState
+from mexgen_gcs.io.plans import MissionPlanner
 from mexgen_gcs.io.records import Plan
-from mexgen_gcs.mission.planning import MissionPlanner
-from mexgen_gcs.mission.run import build_core
 
 
 def default_other_method(recorded: str) -> str:
@@ -110,7 +109,7 @@ def replay(flight: FlightData, method: str, *, seed: int | None = None,
     mission = flight.mission
     base_seed = seed if seed is not None else (flight.seed if flight.seed is not None else 0)
     rng = np.random.default_rng(base_seed)
-    core = build_core(mission, rng.spawn(1)[0])
+    core = mission.mission_core(rng.spawn(1)[0])
     plan_rng = rng.spawn(1)[0]
     t_reset = flight.t_airborne if flight.t_airborne is not None else flight.t_start
     core.reset_clock(t_reset)

@@ -1,7 +1,7 @@
 """MissionSnapshot objects rebuilt from a flight log, for replaying a flight in the terminal UI
 (the same immutable views the live mission publishes).
 
-Frame: WGS84 for display plus local ENU metres about home, as in ``mission.snapshot``. The
+Frame: WGS84 for display plus local ENU metres about home, as in ``io.snapshot``. The
 tags show the recorded estimates; the replay's comparison of another planner method is added
 to the events and, when it disagrees with the recorded choice, to the warnings.
 """
@@ -19,8 +19,8 @@ from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.analysis.replay import ReplayStep
 from mexgen_gcs.analysis.truth import Truth
 from mexgen_gcs.io.records import Plan
+from mexgen_gcs.io.snapshot import MissionSnapshot, TagView
 from mexgen_gcs.io.vehicle import Telemetry
-from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
 
 TRACK_POINTS = 600
 EVENT_LINES = 20

@@ -21,6 +21,7 @@ from mexgen_gcs.config.schema import (
     Home,
     KeyPath,
     Localisation,
+    LogSection,
     Planner,
     RadioSection,
     Receiver,
@@ -33,8 +34,11 @@ from mexgen_gcs.config.schema import (
 from mexgen_gcs.config.sim_schema import SimSection, SimTag
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
+from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.geo import LocalFrame
+from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
+from mexgen_gcs.core.planner import PlannerConfig
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import RadioUncertainty, TagRadioPrior
 
@@ -60,6 +64,7 @@ class Mission(Section):
                                        description="When a tag is localised.")
     follow: Follow | None = Field(None, description="Required when kind = follow.")
     safety: Safety = Field(default_factory=Safety, description="Limits and failsafes.")
+    log: LogSection = Field(default_factory=LogSection, description="The flight log.")
     sim: SimSection = Field(default_factory=SimSection, description="Simulator only.")
 
     _source_path: str | None = PrivateAttr(default=None)
@@ -267,6 +272,30 @@ class Mission(Section):
             localised_min_existence=loc.min_existence,
             radio_unknowns=self.radio_uncertainty(),
         )
+
+    def planner_config(self, method: str) -> PlannerConfig:
+        """The core planner's settings for ``method`` (the planner and flight sections): the
+        one place a flight, its warm-up, replay and the experiments get them."""
+        p = self.planner
+        return PlannerConfig(
+            method=method_name(method), samples=p.samples, mc_rollouts=p.mc_rollouts,
+            lookahead_s=p.lookahead_s, step_s=p.step_s, discount=p.discount, alpha=p.alpha,
+            speed_m_s=self.flight.speed_m_s, max_accel_m_s2=self.flight.max_accel_m_s2,
+            action_cost_weight=p.action_cost_weight)
+
+    def mission_core(self, rng: np.random.Generator, *, area: SearchArea | None = None,
+                     t0: float = 0.0, tight_radius_m: float | None = None) -> MissionCore:
+        """The mission's decision core: the one constructor the flight, the warm-up, the
+        experiments and replay share, so that what is measured is what flies. ``area``: the
+        filters' prior and birth region (default the search area; the experiments' initial
+        search space); ``t0``, ``tight_radius_m``: see :class:`core.mission_core.MissionCore`."""
+        return MissionCore(
+            self.tag_ids, self.filter_motion_model(), self.radio_model(),
+            self.search_area() if area is None else area, self.filter_config(), rng,
+            kind=self.kind, target_rule=self.planner.target,
+            follow_tag=self.follow.tag if self.follow is not None else None,
+            planning_particles=self.planner.n_particles, t0=t0,
+            tag_priors=self.tag_radio_priors(), tight_radius_m=tight_radius_m)
 
     def sim_tag(self, tag_id: str) -> SimTag:
         """The simulated truth of a mission tag: its sim.tags entry, or a static tag at a

@@ -386,6 +386,16 @@ class Follow(Section):
                               description="How long to follow, seconds.")
 
 
+class LogSection(Section):
+    """The flight log (written by a thread of its own, off the flight's event loop)."""
+
+    fsync_every_s: Float | None = Field(
+        1.0, ge=0.0, le=3600.0,
+        description="Force the flight log to disk (fsync) at most this often, wall seconds: "
+        "a power cut loses at most about this much of the log's tail. 0: after every record; "
+        "null: never (the operating system decides).")
+
+
 class Safety(Section):
     """Limits and failsafes."""
 

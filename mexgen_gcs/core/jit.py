@@ -2,9 +2,15 @@
 
 The filter's and the planner's hot loops are written once, as plain Python over arrays, and
 compiled by numba's ``njit`` on first use: ahead-of-time compilation would need a compiler on
-the user's machine, and numba ships as wheels. Compiled code is cached on disk
-(``cache=True``: next to the module, or under ``NUMBA_CACHE_DIR`` where that is not
-writable), so only the first run on a machine pays the compile.
+the user's machine, and numba ships as wheels. Compiled code is cached on disk (``cache=True``),
+so only the first run on a machine pays the compile.
+
+Where: ``<NUMBA_CACHE_DIR or ~/.cache/mexgen-gcs/numba>/<key>``, the key a hash of every
+source file of ``core/`` and numba's version (:func:`cache_key`). Numba checks a cached kernel
+against its own file only, so a change to a helper it inlines from another file (say
+``core.radio.distance2_and_gain`` in the planner's kernels) would otherwise leave the old
+machine code in use; with the key any change to ``core/`` starts a fresh cache. Set here, at
+import, before any kernel is decorated (numba reads the location then).
 
 Errors follow numpy, not Python (``error_model="numpy"``): a division by zero gives an
 infinity or NaN instead of raising, so numba inserts no check into a loop and LLVM can
@@ -24,8 +30,11 @@ reproducible by seed and draws from the one stream the caller owns.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numba
@@ -33,6 +42,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+
+def cache_key(source_dir: Path = Path(__file__).parent) -> str:
+    """A hash of every ``*.py`` in ``source_dir`` (name and content) and numba's version."""
+    h = hashlib.sha256(numba.__version__.encode())
+    for path in sorted(source_dir.glob("*.py")):
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def cache_dir(key: str | None = None) -> Path:
+    """The kernel cache of this source: ``NUMBA_CACHE_DIR`` (or the user's cache) / key."""
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(Path.home(), ".cache"),
+        "mexgen-gcs", "numba")
+    return Path(base) / (key or cache_key())
+
+
+numba.config.CACHE_DIR = str(cache_dir())  # type: ignore[attr-defined]
 
 FASTMATH: frozenset[str] = frozenset({"nsz", "arcp", "contract", "afn", "reassoc"})
 """LLVM fast-math flags of every kernel: not ``nnan``/``ninf`` (see the module docstring)."""

@@ -218,7 +218,7 @@ class VehicleState:
 
 @dataclass(frozen=True, slots=True, eq=False)
 class PlanResult:
-    """An immutable planning decision (the flight log's form is `mission.planning.plan_record`)."""
+    """An immutable planning decision (the flight log's form is `io.plans.plan_record`)."""
 
     method: str
     target_ids: tuple[str, ...]

@@ -225,12 +225,17 @@ def update_step(
                 log_total_det = math.log(total)
                 log_prior = log_total[t, a, r]
                 if mix < _F(1e-30) or alpha > 1.0:  # underflow, or a positive exponent: exactly
+                    # over the entries of nonzero posterior weight only: a zero-weight entry
+                    # (the padding, an impossible particle) adds nothing, and for alpha > 1
+                    # its term would be alpha (-inf) + (1 - alpha) (-inf) = -inf + inf = NaN
                     mix_max = -np.inf
                     for i in range(n):
-                        mix_max = max(mix_max, alpha * ow[i] + (1.0 - alpha) * lw[i])
+                        if ow[i] > -np.inf:
+                            mix_max = max(mix_max, alpha * ow[i] + (1.0 - alpha) * lw[i])
                     s = 0.0
                     for i in range(n):
-                        s += math.exp(alpha * ow[i] + (1.0 - alpha) * lw[i] - mix_max)
+                        if ow[i] > -np.inf:
+                            s += math.exp(alpha * ow[i] + (1.0 - alpha) * lw[i] - mix_max)
                     log_mix = math.log(s) + mix_max
                 else:
                     log_mix = math.log(mix)

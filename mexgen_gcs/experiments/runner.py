@@ -3,11 +3,12 @@
 Frame: local ENU metres about the area centre (x east, y north, z up); headings are compass
 degrees (0 = north, clockwise).
 
-The decision logic is the code a flight runs: a ``MissionCore`` configured from the run's
-mission (``scenario.mission_for``) exactly as ``mission.run.build_core`` does, except that the
-filters' prior and births cover the scenario's initial search space; the planner is
-``core.planner.Planner`` with ``mission.planning.planner_config`` (what ``MissionPlanner``
-builds); the setpoints come from ``mission.guidance.velocity_setpoint`` (with the area guard).
+The decision logic is the code a flight runs: a ``MissionCore`` built from the run's mission
+(``scenario.mission_for``) by the flight's own constructor, ``config.Mission.mission_core``
+(per-tag radio priors included), except that the filters' prior and births cover the
+scenario's initial search space; the planner is
+``core.planner.Planner`` with ``config.Mission.planner_config`` (what the flight's planner
+worker builds); the setpoints come from ``core.guidance.velocity_setpoint`` (with the area guard).
 Time is simulated: no sockets, no sleeping, no clock read for decisions. Cadence, as the
 controller's: plan at t = 0 on the prior; every pulse period the vehicle flies the current
 setpoint (recomputed every control period), the receiver measures every tag, the core runs
@@ -35,13 +36,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.mission_core import Localised, MissionCore
 from mexgen_gcs.core.planner import Planner, VehicleState
 from mexgen_gcs.experiments.scenario import Scenario, method_config, mission_for
 from mexgen_gcs.experiments.seeds import run_seeds
 from mexgen_gcs.experiments.world import PointMass, RadioWorld, reality_for, truth_for
-from mexgen_gcs.mission.guidance import velocity_setpoint
-from mexgen_gcs.mission.planning import planner_config
 
 FloatArray = NDArray[np.float64]
 
@@ -108,14 +108,10 @@ def run_one(spec: RunSpec) -> RunResult:
     gcs = np.random.default_rng(seeds.gcs)
     radio_model = mission.radio_model()
     area = mission.search_area()
-    core = MissionCore(
-        mission.tag_ids, mission.filter_motion_model(), radio_model, sc.initial_area(),
-        mission.filter_config(), gcs.spawn(1)[0], kind=mission.kind,
-        target_rule=mission.planner.target,
-        follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, t0=0.0,
+    core = mission.mission_core(
+        gcs.spawn(1)[0], area=sc.initial_area(), t0=0.0,
         tight_radius_m=sc.tight_radius_m if sc.kind == "localise" else None)
-    config = replace(planner_config(mission, planner_method), reach=sc.planner_reach,
+    config = replace(mission.planner_config(planner_method), reach=sc.planner_reach,
                      outcome=sc.planner_outcome)  # type: ignore[arg-type]
     planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]

@@ -110,6 +110,11 @@ class JsonlWriter:
         self.records += 1
         return safe
 
+    def sync(self) -> None:
+        """Force what is written to the disk (fsync)."""
+        if self._file is not None:
+            os.fsync(self._file.fileno())
+
     def _undo(self) -> None:
         """Cut a partly written record off (best effort: truncating frees space)."""
         if self._file is None:

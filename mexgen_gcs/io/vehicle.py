@@ -24,7 +24,7 @@ import json
 import logging
 import math
 import time
-from collections.abc import AsyncIterator, Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
 from dataclasses import dataclass, replace
 from typing import Any, Protocol
 
@@ -206,6 +206,12 @@ def mavsdk_reason(exc: BaseException) -> str:
     return str(name) if name else str(exc)
 
 
+async def _to_the_end(name: str, pump: Coroutine[Any, Any, None]) -> None:
+    """Run a telemetry pump, which only ends when its stream does: that is an error."""
+    await pump
+    raise VehicleError(f"telemetry stream {name}", "ended")
+
+
 class MavsdkVehicle:
     """`Vehicle` through MAVSDK's native asyncio binding. Plugins live as long as this object."""
 
@@ -257,7 +263,9 @@ class MavsdkVehicle:
     # -- telemetry ---------------------------------------------------------------------------
 
     async def run_telemetry(self) -> None:
-        """Consume every stream until cancelled: one task per MAVSDK subscription."""
+        """Consume every stream until cancelled: one task per MAVSDK subscription. A stream
+        that ends (MAVSDK closed it) raises VehicleError naming it: the others would keep the
+        link looking fresh while, say, the flight mode is no longer watched."""
         tel = self._plugins["telemetry"]
         streams: list[tuple[Callable[[], AsyncIterator[Any]], Callable[[Any], dict[str, Any]]]]
         streams = [
@@ -279,12 +287,16 @@ class MavsdkVehicle:
                 "home_lat_deg": h.latitude_deg, "home_lon_deg": h.longitude_deg,
                 "home_abs_alt_m": h.absolute_altitude_m}),
         ]
-        async with asyncio.TaskGroup() as tg:
-            for subscribe, convert in streams:
-                tg.create_task(self._pump(subscribe, convert))
-            tg.create_task(self._pump_connection())
-            tg.create_task(self._pump_status_text(tel))
-            tg.create_task(self._pump_time(tel))
+        try:
+            async with asyncio.TaskGroup() as tg:
+                for subscribe, convert in streams:
+                    name = getattr(subscribe, "__name__", "stream").removeprefix("subscribe_")
+                    tg.create_task(_to_the_end(name, self._pump(subscribe, convert)))
+                tg.create_task(_to_the_end("connection", self._pump_connection()))
+                tg.create_task(_to_the_end("status_text", self._pump_status_text(tel)))
+                tg.create_task(_to_the_end("time", self._pump_time(tel)))
+        except* VehicleError as group:
+            raise group.exceptions[0] from None
 
     async def _pump(self, subscribe: Callable[[], AsyncIterator[Any]],
                     convert: Callable[[Any], dict[str, Any]]) -> None:

@@ -19,6 +19,7 @@ import time
 from collections.abc import Awaitable, Callable
 
 from mexgen_gcs.core.generators import METHODS
+from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.vehicle import StatusText
 from mexgen_gcs.mission import views
 from mexgen_gcs.mission.context import MissionContext
@@ -57,6 +58,14 @@ async def contained(ctx: MissionContext, name: str, task: Callable[[], Awaitable
             attempt += 1
             await asyncio.sleep(RESTART_DELAY_S)
             ctx.event("task_restarted", level=logging.WARNING, task=name, attempt=attempt)
+
+
+async def telemetry(ctx: MissionContext) -> None:
+    """The vehicle's telemetry streams, which run until cancelled: streams that end are a
+    fault (the running phase takes its safe action; ``contained`` re-subscribes), not a quiet
+    stop that would leave the mode watch blind."""
+    await ctx.vehicle.run_telemetry()
+    raise VehicleError("telemetry", "the streams ended")
 
 
 def on_status_text(ctx: MissionContext) -> Callable[[StatusText], None]:

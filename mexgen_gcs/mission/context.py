@@ -22,11 +22,11 @@ from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.planner import VehicleState
 from mexgen_gcs.io.clock import Clock
 from mexgen_gcs.io.records import Plan
+from mexgen_gcs.io.snapshot import SnapshotBus
 from mexgen_gcs.io.vehicle import Telemetry, Vehicle
 from mexgen_gcs.mission.commander import HOLD, Commander
 from mexgen_gcs.mission.logsink import MissionLog
 from mexgen_gcs.mission.pose_history import Pose, PoseHistory
-from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.mission.state import (
     ControllerOptions,
     EndReason,
@@ -93,6 +93,8 @@ class MissionContext:
         self.link_was_lost = False
         self.landed_ok = False
         self.armed_by_us = False
+        self.escalated = False
+        """A stop that could not be obeyed: the mission exits without commanding more."""
         # times (mission clock)
         self.t_start = clock.now()
         self.t_airborne: float | None = None

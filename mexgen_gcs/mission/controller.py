@@ -28,6 +28,10 @@ takeover      (any phase, the autopilot or a pilot set a mode the GCS did not co
               operator asks (UI key, Ctrl-C = return to launch)
 ============  ================================================================================
 
+Cancelled (the task running ``run`` is cancelled, e.g. by the UI's task group): return to
+launch is commanded once (bounded), the ``result`` record (``cancelled``) is written and the
+CancelledError propagates; the landing is the autopilot's.
+
 SIGINT (Ctrl-C) is the operator's abort; SIGHUP and SIGTERM return the vehicle and land, then
 exit (after a takeover they only end the wait). Log I/O errors (disk full) degrade to a
 warning and a count of lost records; a late planner is skipped, never queued; progress output
@@ -47,6 +51,8 @@ import numpy as np
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import MexgenError
 from mexgen_gcs.io.clock import Clock
+from mexgen_gcs.io.plans import MissionPlanner
+from mexgen_gcs.io.snapshot import SnapshotBus
 from mexgen_gcs.io.vehicle import Vehicle
 from mexgen_gcs.mission import background as bg
 from mexgen_gcs.mission import views
@@ -54,8 +60,6 @@ from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.ingest import radio_ingest
 from mexgen_gcs.mission.logsink import MissionLog
 from mexgen_gcs.mission.phases import preflight, returning, search, takeoff
-from mexgen_gcs.mission.planning import MissionPlanner
-from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.mission.state import (
     ControllerOptions,
     EndReason,
@@ -70,6 +74,10 @@ from mexgen_gcs.mission.state import (
 __all__ = ["ControllerOptions", "MissionController", "MissionResult"]
 
 log = logging.getLogger(__name__)
+
+
+CANCEL_COMMAND_S = 5.0
+"""Wall seconds a cancelled mission waits for its return (or land) command to go out."""
 
 
 class _Over(Exception):
@@ -94,13 +102,16 @@ class MissionController:
         options: ControllerOptions | None = None,
         truth: Callable[[], dict[str, tuple[float, float]]] | None = None,
     ) -> None:
-        sink = flight_log if isinstance(flight_log, MissionLog) else MissionLog(flight_log)
+        sink = flight_log if isinstance(flight_log, MissionLog) else MissionLog(
+            flight_log, fsync_every_s=mission.log.fsync_every_s)
         self.ctx = MissionContext(mission, vehicle, receiver, clock, core, sink, method=method,
                                   rng=rng, connect_url=connect_url,
                                   options=options or ControllerOptions(), truth=truth)
         sink.on_loss = lambda text: self.ctx.events.append(f"flight log: {text}")
         self.planner = MissionPlanner(mission)
         self._executor = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="planner")
+        self.result: MissionResult | None = None
+        """The result, once ``run`` has ended (also when it was cancelled)."""
 
     # -- public ------------------------------------------------------------------------------
 
@@ -120,28 +131,82 @@ class MissionController:
         except asyncio.QueueFull:
             self.ctx.event("command_dropped", level=logging.WARNING, command=command)
 
-    async def run(self) -> MissionResult:
+    def escalate(self, why: str) -> None:
+        """A stop request that cannot be obeyed (a second stop signal while the vehicle does
+        not answer): logged, nothing more is commanded, and the end reason says so. The
+        caller then cancels ``run``, which writes the result record."""
         ctx = self.ctx
+        ctx.escalated = True
+        ctx.event("signal_repeated", level=logging.ERROR, why=why, phase=ctx.phase,
+                  note="exiting now without waiting for the vehicle")
+        ctx.end_reason = EndReason.SIGNAL_REPEATED
+
+    async def run(self) -> MissionResult:
+        """Fly the mission to its result. Cancelled (the caller's task group, an app closing):
+        the sequence commands its safe action (``_cancelled``), the ``result`` record is
+        written, and the CancelledError propagates."""
+        ctx = self.ctx
+        cancelled: asyncio.CancelledError | None = None
         try:
-            async with asyncio.TaskGroup() as tg:
-                tg.create_task(bg.contained(ctx, "radio", lambda: radio_ingest(ctx)),
-                               name="radio")
-                tg.create_task(bg.contained(ctx, "operator", lambda: bg.operator(ctx),
-                                            restarts=5), name="operator")
-                tg.create_task(bg.snapshots(ctx), name="snapshots")
-                tg.create_task(self._sequence(tg), name="sequence")
-        except* _Over:
-            pass
+            try:
+                async with asyncio.TaskGroup() as tg:
+                    tg.create_task(bg.contained(ctx, "radio", lambda: radio_ingest(ctx)),
+                                   name="radio")
+                    tg.create_task(bg.contained(ctx, "operator", lambda: bg.operator(ctx),
+                                                restarts=5), name="operator")
+                    tg.create_task(bg.snapshots(ctx), name="snapshots")
+                    tg.create_task(self._sequence(tg), name="sequence")
+            except* _Over:
+                pass
+        except asyncio.CancelledError as exc:
+            cancelled = exc
+            ctx.set_end(EndReason.CANCELLED)
         finally:
             self._executor.shutdown(wait=False, cancel_futures=True)
         ctx.state = MissionState.DONE
         result = views.build_result(ctx)
         self._final_records(result)
+        ctx.log.close()  # drains the writer thread (bounded): the result record is on disk
+        self.result = result
+        if cancelled is not None:
+            raise cancelled
         return result
 
     # -- the flight sequence -----------------------------------------------------------------
 
     async def _sequence(self, tg: asyncio.TaskGroup) -> None:
+        try:
+            await self._phases(tg)
+        except asyncio.CancelledError:
+            await self._cancelled()
+            raise
+        raise _Over
+
+    async def _cancelled(self) -> None:
+        """The safe action of a cancelled mission: return to launch (the operator's land, if
+        asked), commanded once and bounded by ``CANCEL_COMMAND_S``; the autopilot flies it
+        home and lands on its own. The landing is not watched: the telemetry task is being
+        cancelled with this one."""
+        ctx = self.ctx
+        ctx.set_end(EndReason.CANCELLED)
+        ctx.event("cancelled", level=logging.WARNING, phase=ctx.phase)
+        if not (ctx.armed_by_us and ctx.commander.in_control and not ctx.landed_ok
+                and ctx.commander.may_be_armed()) or ctx.escalated:
+            return
+        land = (ctx.stop is not None and ctx.stop.operator
+                and ctx.stop.action is ReturnAction.LAND)
+        try:
+            async with asyncio.timeout(CANCEL_COMMAND_S):
+                if land:
+                    await ctx.commander.land()
+                else:
+                    await ctx.commander.return_to_launch()
+            ctx.event("land_commanded" if land else "rtl_commanded", reason=ctx.end_reason,
+                      operator=False, note="cancelled: the landing is not watched")
+        except Exception as exc:  # TimeoutError, VehicleError, ...: logged, the exit goes on
+            ctx.fault("return", exc)
+
+    async def _phases(self, tg: asyncio.TaskGroup) -> None:
         ctx = self.ctx
         action = ReturnAction.NONE
         try:
@@ -174,7 +239,6 @@ class MissionController:
                 ctx.fault("return", exc)
         elif ctx.end_reason is None:
             ctx.set_end(EndReason.ERROR)
-        raise _Over
 
     def _start_vehicle_tasks(self, tg: asyncio.TaskGroup) -> None:
         """Once connected: listeners on the telemetry hub, then the vehicle's long-lived tasks."""
@@ -185,7 +249,7 @@ class MissionController:
         observe = getattr(ctx.clock, "observe", None)
         if observe is not None:
             hub.on_time.append(observe)
-        tg.create_task(bg.contained(ctx, "telemetry", ctx.vehicle.run_telemetry, restarts=3),
+        tg.create_task(bg.contained(ctx, "telemetry", lambda: bg.telemetry(ctx), restarts=3),
                        name="telemetry")
         tg.create_task(bg.contained(ctx, "telemetry-log", lambda: bg.telemetry_log(ctx),
                                     restarts=3), name="telemetry-log")

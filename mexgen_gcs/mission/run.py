@@ -11,10 +11,12 @@ simulator's ground truth. ``fly`` is the same without the child process.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import copy
 import logging
 import math
 import os
+import select
 import signal
 import socket
 import subprocess
@@ -31,7 +33,6 @@ import numpy as np
 import yaml
 
 from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
-from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import ConfigError, LogFormatError, MexgenError
 from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
@@ -39,6 +40,7 @@ from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
 from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
 from mexgen_gcs.io.vehicle import MavsdkVehicle
 from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
+from mexgen_gcs.mission.state import EndReason
 
 log = logging.getLogger(__name__)
 
@@ -112,15 +114,6 @@ def make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: 
     return d
 
 
-def build_core(mission: Any, rng: np.random.Generator) -> MissionCore:
-    return MissionCore(
-        mission.tag_ids, mission.filter_motion_model(), mission.radio_model(),
-        mission.search_area(), mission.filter_config(), rng, kind=mission.kind,
-        target_rule=mission.planner.target,
-        follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors())
-
-
 async def fly_mission(
     mission: Any,
     *,
@@ -137,7 +130,7 @@ async def fly_mission(
     """Fly one mission with real ports. The caller owns any simulator process. ``runner``
     flies the controller with something attached (the terminal UI); default: headless."""
     rng = np.random.default_rng(seed)
-    core = build_core(mission, rng.spawn(1)[0])
+    core = mission.mission_core(rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now)
     with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
                          clock=clock.now) as flight_log:
@@ -148,12 +141,20 @@ async def fly_mission(
                 mission, vehicle, receiver, clock, core, flight_log, method=method,
                 rng=rng.spawn(1)[0], connect_url=connect_url, options=options,
                 truth=truth.positions if truth is not None else None)
-            signals = _abort_on_signals(controller)
+            stops = StopSignals(controller, asyncio.current_task())
+            signals = stops.install()
             try:
                 if runner is not None:
                     result = await runner(controller)
                 else:
                     result = await controller.run()
+            except asyncio.CancelledError:
+                if not stops.escalated or controller.result is None:
+                    raise
+                task = asyncio.current_task()
+                if task is not None:
+                    task.uncancel()
+                result = controller.result
             finally:
                 for sig in signals:
                     asyncio.get_running_loop().remove_signal_handler(sig)
@@ -162,17 +163,64 @@ async def fly_mission(
     return result
 
 
-def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
+ESCALATION_EXIT_S = 4.0
+"""Wall seconds after a repeated stop signal at which the process exits whatever it is doing
+(the cooperative exit, the result record included, normally takes well under a second)."""
+
+
+class StopSignals:
     """SIGINT is the operator's abort; SIGHUP (the terminal is gone) and SIGTERM ask the
-    mission to end too: the vehicle returns and lands, then the program exits. Only possible
-    in the main thread on POSIX; elsewhere (flights in worker threads) none are set."""
-    if sys.platform == "win32" or threading.current_thread() is not threading.main_thread():
-        return []
-    loop = asyncio.get_running_loop()
-    loop.add_signal_handler(signal.SIGINT, controller.request, "abort")
-    loop.add_signal_handler(signal.SIGTERM, controller.request, "signal:SIGTERM")
-    loop.add_signal_handler(signal.SIGHUP, controller.request, "signal:SIGHUP")
-    return [signal.SIGINT, signal.SIGTERM, signal.SIGHUP]
+    mission to end too: the vehicle returns and lands, then the program exits. A second stop
+    signal while the first is still being obeyed (the vehicle gone, a landing that cannot
+    come) escalates: ``MissionController.escalate`` logs it and ends the mission without
+    commanding more, the flight task is cancelled (the result record is written), and
+    ``ESCALATION_EXIT_S`` later the process exits regardless. Handlers only in the main
+    thread on POSIX; elsewhere (flights in worker threads) none are set."""
+
+    SIGNALS = (("SIGINT", "abort"), ("SIGTERM", "signal:SIGTERM"), ("SIGHUP", "signal:SIGHUP"))
+
+    def __init__(self, controller: MissionController, task: asyncio.Task[Any] | None, *,
+                 force_exit: Callable[[str], None] | None = None) -> None:
+        self.controller = controller
+        self.task = task
+        self.force_exit = force_exit if force_exit is not None else _force_exit
+        self.received: list[str] = []
+        self.escalated = False
+
+    def install(self) -> list[signal.Signals]:
+        if sys.platform == "win32" or threading.current_thread() is not threading.main_thread():
+            return []
+        loop = asyncio.get_running_loop()
+        installed = []
+        for name, command in self.SIGNALS:
+            sig = getattr(signal, name)
+            loop.add_signal_handler(sig, self.on_signal, name, command)
+            installed.append(sig)
+        return installed
+
+    def on_signal(self, name: str, command: str) -> None:
+        self.received.append(name)
+        if len(self.received) == 1:
+            self.controller.request(command)
+            return
+        if self.escalated:
+            return
+        self.escalated = True
+        why = f"{name} after {self.received[0]}: the first stop could not be obeyed"
+        print(f"mexgen-gcs: {why}; exiting now", file=sys.stderr, flush=True)
+        self.controller.escalate(why)
+        if self.task is not None:
+            self.task.cancel()
+        timer = threading.Timer(ESCALATION_EXIT_S, self.force_exit, args=(why,))
+        timer.daemon = True
+        timer.start()
+
+
+def _force_exit(why: str) -> None:
+    """The backstop of an escalated stop: the cooperative exit has hung (a native call)."""
+    with contextlib.suppress(Exception):
+        print(f"mexgen-gcs: forced exit ({why})", file=sys.stderr, flush=True)
+    os._exit(1)
 
 
 def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: SitlPorts,
@@ -186,27 +234,49 @@ def start_simulator(mission_path: Path, *, seed: int, speedup: float, ports: Sit
     log_file = open(truth_dir / "sim.log", "w", encoding="utf-8")  # noqa: SIM115 - owned by proc
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=log_file, text=True,
                             env={**os.environ, "MAVLINK20": "1"})
-    deadline = time.monotonic() + ready_timeout_s
-    assert proc.stdout is not None
-    while time.monotonic() < deadline:
-        line = proc.stdout.readline()
-        if not line:
-            break
-        if line.startswith("sim ready"):
-            return proc
-    stop_simulator(proc)
+    try:
+        ready = _wait_for_ready_line(proc, time.monotonic() + ready_timeout_s)
+    except BaseException:  # Ctrl-C while waiting: the simulator goes too
+        stop_simulator(proc, wait_s=0.0)
+        raise
+    if ready:
+        return proc
+    stop_simulator(proc, wait_s=0.0)
     raise MexgenError(f"the simulator did not start within {ready_timeout_s:.0f} s; "
                       f"see {truth_dir / 'sim.log'}")
 
 
-def stop_simulator(proc: subprocess.Popen[str], wait_s: float = 20.0) -> int | None:
+def _wait_for_ready_line(proc: subprocess.Popen[str], deadline: float) -> bool:
+    """Whether the simulator printed its ready line before the monotonic ``deadline``: the
+    deadline bounds each read (a simulator that hangs before its first line, or mid-line,
+    cannot hold the wait), not only the gaps between lines."""
+    assert proc.stdout is not None
+    fd = proc.stdout.fileno()  # read raw: the text wrapper's buffer would hide lines from select
+    pending = b""
+    while (remaining := deadline - time.monotonic()) > 0:
+        readable, _, _ = select.select([fd], [], [], remaining)
+        if not readable:
+            return False
+        chunk = os.read(fd, 4096)
+        if not chunk:  # the simulator exited
+            return False
+        pending += chunk
+        lines = pending.split(b"\n")
+        pending = lines.pop()
+        if any(line.startswith(b"sim ready") for line in lines):
+            return True
+    return False
+
+
+def stop_simulator(proc: subprocess.Popen[str], wait_s: float = 20.0,
+                   term_wait_s: float = 10.0) -> int | None:
     """Let the simulator finish on its own (it exits once landed), else SIGTERM, else kill."""
     try:
         return proc.wait(timeout=wait_s)
     except subprocess.TimeoutExpired:
         proc.terminate()
     try:
-        return proc.wait(timeout=10.0)
+        return proc.wait(timeout=term_wait_s)
     except subprocess.TimeoutExpired:
         proc.kill()
         return proc.wait()
@@ -243,17 +313,23 @@ def run_sitl(
     resolved = out / "mission.yaml"
     resolved.write_text(yaml.safe_dump(dump_resolved(m), sort_keys=False), encoding="utf-8")
     ports = ports or SitlPorts()
-    proc = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports, truth_dir=out,
-                           extra_args=sim_args)
     clock: Clock = VehicleClock(fixed_rate=time_scale)
-    try:
+    proc: subprocess.Popen[str] | None = None
+    result: MissionResult | None = None
+    try:  # start_simulator stops its process itself if interrupted while it waits
+        proc = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports, truth_dir=out,
+                               extra_args=sim_args)
         result = asyncio.run(fly_mission(
             m, connect_url=f"udpin://127.0.0.1:{ports.mavlink}",
             radio_url=f"udp://127.0.0.1:{ports.radio}", clock=clock, log_dir=out,
             method=chosen, seed=seed, options=options, truth_path=out / TRUTH_FILE, runner=runner))
     finally:
-        code = stop_simulator(proc)
-        log.info("simulator exited with %s", code)
+        if proc is not None:
+            if result is not None and result.end_reason == EndReason.SIGNAL_REPEATED:
+                code = stop_simulator(proc, wait_s=0.0, term_wait_s=1.0)  # no time to wait
+            else:
+                code = stop_simulator(proc)
+            log.info("simulator exited with %s", code)
     attach_truth_errors(result, out / TRUTH_FILE, m)
     return result
 

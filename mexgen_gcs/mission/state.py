@@ -36,6 +36,10 @@ class EndReason(enum.StrEnum):
     OPERATOR_LAND = "operator_land"
     SIGNAL_SIGHUP = "signal_sighup"
     SIGNAL_SIGTERM = "signal_sigterm"
+    CANCELLED = "cancelled"
+    """The task flying the mission was cancelled (e.g. by the UI's task group)."""
+    SIGNAL_REPEATED = "signal_repeated"
+    """A second stop signal while the first could not be obeyed: immediate exit."""
     # the mission's safety rules
     BATTERY_LOW = "battery_low"
     MAX_MISSION_TIME = "max_mission_time"

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
+from mexgen_gcs.io.snapshot import MissionSnapshot, TagView
 from mexgen_gcs.mission.state import SUCCESS, MissionResult
 
 if TYPE_CHECKING:

@@ -22,10 +22,8 @@ from typing import Any
 import numpy as np
 
 from mexgen_gcs.core.generators import METHODS
-from mexgen_gcs.core.mission_core import MissionCore
+from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.planner import Planner, VehicleState
-from mexgen_gcs.mission.guidance import velocity_setpoint
-from mexgen_gcs.mission.planning import planner_config
 
 
 def warm_up(mission: Any) -> float:
@@ -33,11 +31,7 @@ def warm_up(mission: Any) -> float:
     t0 = time.perf_counter()
     rng = np.random.default_rng(0)
     area = mission.search_area()
-    core = MissionCore(
-        mission.tag_ids, mission.filter_motion_model(), mission.radio_model(), area,
-        mission.filter_config(), rng, kind=mission.kind, target_rule=mission.planner.target,
-        follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors())
+    core = mission.mission_core(rng)
     centre = np.asarray(area.centre_m, dtype=np.float64)
     rx = np.array([centre[0], centre[1], float(mission.flight.alt_m)])
     core.add_detection(mission.tag_ids[0], -50.0, rx, 0.0)
@@ -50,7 +44,7 @@ def warm_up(mission: Any) -> float:
     if request is not None:  # the core planner, as the flight's planner worker runs it
         radio = mission.radio_model()
         for method in METHODS:
-            Planner(planner_config(mission, method), radio, area).plan(
+            Planner(mission.planner_config(method), radio, area).plan(
                 request.beliefs, request.vehicle, rng)
     velocity_setpoint(0.0, float(mission.flight.speed_m_s), (float(rx[0]), float(rx[1])),
                       float(rx[2]), float(rx[2]), area, 0.0)

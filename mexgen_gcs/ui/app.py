@@ -23,7 +23,7 @@ from textual.driver import Driver
 from textual.events import Key
 from textual.widgets import Footer
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.confirm_screen import ConfirmScreen
 from mexgen_gcs.ui.event_log import EventLog

@@ -16,7 +16,7 @@ from textual.geometry import Region
 from textual.strip import Strip
 from textual.widget import Widget
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.map_canvas import MapScene, MapTag, Viewport, draw_canvas, fit_viewport
 

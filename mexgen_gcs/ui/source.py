@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
 from mexgen_gcs.core.generators import METHODS
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 
 #: operator commands a live mission accepts (controller.request)
 MISSION_COMMANDS = ("pause", "resume", "rtl", "land", "abort")

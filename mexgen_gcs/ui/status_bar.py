@@ -10,7 +10,7 @@ from rich.console import RenderableType
 from rich.text import Text
 from textual.widget import Widget
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 from mexgen_gcs.mission.state import MissionState
 from mexgen_gcs.ui.format import age_text, clock_text, finite, num
 

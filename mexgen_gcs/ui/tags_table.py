@@ -13,7 +13,7 @@ from rich.text import Text
 from textual.message import Message
 from textual.widgets import DataTable
 
-from mexgen_gcs.mission.snapshot import TagView
+from mexgen_gcs.io.snapshot import TagView
 from mexgen_gcs.ui.format import freq_mhz, num
 
 COLUMNS = ("Tag", "MHz", "P(exist)", "Lat", "Lon", "±m", "det/min", "RSSI dB", "Localised")

@@ -16,7 +16,7 @@ from mexgen_gcs.analysis.cli import cmd_replay
 from mexgen_gcs.analysis.replay import replay
 from mexgen_gcs.analysis.snapshots import build_snapshots
 from mexgen_gcs.cli import main
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 
 pytestmark = pytest.mark.e2e
 

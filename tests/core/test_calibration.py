@@ -92,6 +92,7 @@ def _surveys(reality: str, seeds: range, preset: PresetName) -> Coverage:
     return Coverage(len(seeds), claims, claims_inside, final_inside)
 
 
+@pytest.mark.long
 def test_the_final_radius_holds_in_the_field_world():
     """Shadowing with fading, an antenna, terrain, transmit offsets, exponent and compass the
     model does not know: 48 surveys, the final 95 % radii hold for at least 0.9 of them and
@@ -103,6 +104,7 @@ def test_the_final_radius_holds_in_the_field_world():
     assert cov.claims_inside >= cov.claims - 1, cov
 
 
+@pytest.mark.long
 def test_misses_teach_the_estimator_where_detection_is_uncertain():
     """The field preset hears a tag only within its range, and most pulses are misses: each
     miss must move the particle's belief about the offset and exponent, not only its weight
@@ -116,6 +118,7 @@ def test_misses_teach_the_estimator_where_detection_is_uncertain():
     assert cov.claims >= 4 and cov.claims_inside >= cov.claims - 1, cov
 
 
+@pytest.mark.long
 def test_the_final_radius_holds_in_the_matched_world():
     """The model's own world: every survey claims, and the radii hold (22 and 23 of 24 on
     the machine that wrote this; 0.958 of 1000 claims in the slow study)."""

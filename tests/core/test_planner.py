@@ -26,7 +26,7 @@ from mexgen_gcs.core.planner import (
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import PulseNoise
 from mexgen_gcs.errors import ConfigError, PlannerError
-from mexgen_gcs.mission.planning import plan_record
+from mexgen_gcs.io.plans import plan_record
 
 METHODS = ["pim", "mexgen", "mc"]
 BIG_AREA = SearchArea.rectangle(-1000, 1000, -1000, 1000)

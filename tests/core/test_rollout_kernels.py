@@ -271,3 +271,35 @@ def test_workspace_reuses_and_grows_buffers():
     c = ws.get("x", (10, 10))
     assert c.shape == (10, 10) and ws.nbytes == 400
     assert ws.get("i", (3,), np.int32).dtype == np.int32
+
+
+@settings(max_examples=60, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 2**32 - 1),
+       n=st.integers(1, 70).filter(lambda k: k % 16 != 0),
+       alpha=st.floats(0.02, 10.0).filter(lambda a: abs(a - 1.0) > 0.05),
+       p=st.floats(0.0, 1.0), pooled=st.booleans())
+def test_padded_rows_match_the_reference_for_any_alpha(seed, n, alpha, p, pooled):
+    """The particle axis padded to a multiple of 16 with zero-weight (-inf) entries, as
+    core.rollout pads it: for alpha > 1 the exact Renyi sum must skip them, not meet them as
+    alpha (-inf) + (1 - alpha) (-inf) = -inf + inf."""
+    radio = RadioModel()
+    table = detection_table(radio)
+    rng = np.random.default_rng(seed)
+    n_pad = -(-n // 16) * 16
+    power = rng.uniform(-75.0, -35.0, (1, 1, n_pad)).astype(np.float32)
+    power[..., n:] = power[..., :1]  # copies of particle 0, as core.rollout pads
+    log_pd = table.log_pd(power)
+    index = np.clip((power * table.inv_step + table.offset).astype(np.int32), 0, None)
+    log_w = np.full((1, 1, 1, n_pad), -np.inf)
+    log_w[..., :n] = np.log(rng.dirichlet(np.ones(n)))
+    z = np.full((1, 1, 1), rng.uniform(-70.0, -35.0))
+    pp = np.full((1, 1, 1), p, np.float32).astype(np.float64)
+    out_lw, out_w, out_total, value = _run_update(power, log_pd, index, table, z, pp, log_w,
+                                                  radio, alpha, pooled)
+    ref_lw, ref_gain = _reference(power[..., :n], log_pd[..., :n], table, z, pp,
+                                  log_w[..., :n], radio, alpha, pooled)
+    assert np.isfinite(value).all() and value[0, 0, 0] >= 0.0
+    assert value[0, 0, 0] == pytest.approx(ref_gain[0, 0, 0], rel=5e-3, abs=1e-4)
+    np.testing.assert_allclose(out_lw[0, 0, 0, :n] - out_total[0, 0, 0], ref_lw[0, 0, 0],
+                               atol=5e-3)
+    assert np.all(out_w[..., n:] == 0.0)  # the padding keeps zero weight

@@ -28,6 +28,8 @@ from mexgen_gcs.experiments.runner import TIMING_COLUMNS
 from mexgen_gcs.experiments.scenario import scenario
 from mexgen_gcs.experiments.store import RunStore, read_rows, row_key, series_path
 
+pytestmark = pytest.mark.long  # worker pools, the experiment CLI as a subprocess
+
 MODEL = "cv-ift"
 METHODS = ("pim", "mc8", "mexgen")
 STARTS, REPS, SEED = 3, 2, 11

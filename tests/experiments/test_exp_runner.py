@@ -207,7 +207,7 @@ def test_field_radio_far_last_tag_is_localised() -> None:
 
 
 def test_the_vehicle_stays_inside_a_small_area() -> None:
-    """The guard (mission.guidance) is given the point mass's velocity and acceleration, so
+    """The guard (core.guidance) is given the point mass's velocity and acceleration, so
     its stopping-point prediction is exact and the vehicle never leaves the area, even when
     the planner's tags sit near the edge of a 1.2 km square."""
     sc = replace(scenario("localise", "rw", quick=True), area_half_m=600.0, initial_half_m=580.0,

@@ -100,6 +100,7 @@ def test_refuses_to_overwrite(tmp_path: Path, mission) -> None:
         FlightLogWriter(tmp_path / "f", mission)
 
 
+@pytest.mark.long  # a Python subprocess
 def test_crash_mid_flight_loses_at_most_the_last_line(tmp_path: Path) -> None:
     """A real process writes records and is killed; the log reads back without the torn tail."""
     log_dir = tmp_path / "crash"
@@ -252,6 +253,7 @@ def test_writer_checks_each_record_against_its_documented_type(tmp_path: Path) -
         assert sink.write("plan", method="pim")  # no headings, rewards, ...
         assert sink.write("plan", method="pim")
         assert sink.write("future_type", anything=1)  # unknown types are kept, not invalid
+        sink.close()  # written by the sink's thread: drained here
     assert dict(w.invalid) == {"invalid plan record": 2} and w.records == 4
     assert len(said) == 1 and "'plan' record does not match" in said[0]
     assert len((tmp_path / "f.jsonl").read_text().splitlines()) == 4

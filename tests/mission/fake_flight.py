@@ -63,14 +63,15 @@ async def fly(log_dir: Any, vehicle: FakeVehicle | None = None, *, overrides: di
               | None = None, requests: tuple[tuple[str, float, str], ...] = (),
               receiver_kw: dict[str, Any] | None = None,
               wrap_log: Callable[[Any], Any] | None = None, options: Any = None,
-              timeout_s: float = 60.0, clock: Any = None) -> Flight:
+              timeout_s: float = 60.0, clock: Any = None,
+              on_start: Callable[[Any], None] | None = None) -> Flight:
     """Fly the fake mission against `vehicle`; `requests` are operator commands
     (trigger, after vehicle s, command) like the vehicle's script; `wrap_log` wraps the
-    flight-log writer (to inject write failures)."""
+    flight-log writer (to inject write failures); `on_start(controller)` runs before the
+    flight."""
     from mexgen_gcs.io.clock import VehicleClock
     from mexgen_gcs.io.flightlog import FlightLogWriter, read_flight_log
     from mexgen_gcs.mission.controller import ControllerOptions, MissionController
-    from mexgen_gcs.mission.run import build_core
 
     mission = make_mission(overrides)
     vehicle = vehicle or FakeVehicle(mission.local_frame())
@@ -81,10 +82,12 @@ async def fly(log_dir: Any, vehicle: FakeVehicle | None = None, *, overrides: di
                                         clock_wait_s=5, takeoff_timeout_s=60,
                                         landing_timeout_s=300, print_progress=False)
     writer = FlightLogWriter(log_dir, mission, seed=1, method="mexgen", clock=clock.now)
-    controller = MissionController(mission, vehicle, receiver, clock, build_core(mission, rng),
+    controller = MissionController(mission, vehicle, receiver, clock, mission.mission_core(rng),
                                    wrap_log(writer) if wrap_log is not None else writer,
                                    method="mexgen", rng=rng, connect_url="fake://",
                                    options=opts)
+    if on_start is not None:  # sees the controller before it flies
+        on_start(controller)
     for trigger, after_s, cmd in requests:
         vehicle.script.append(Scripted(trigger, after_s,
                                        lambda _v, c=cmd: controller.request(c)))

@@ -10,7 +10,8 @@ home inside; WGS84 and NED at the port, as MAVSDK gives them.
 
 Scripted faults: ``script`` entries fire once, ``after_s`` vehicle seconds after their
 ``trigger`` ('offboard': the first OFFBOARD; 'armed'; 'start'), calling an action on the fake
-(``set_mode``, ``disarm_in_flight``, ``set_battery``, ``raise_in_telemetry``). ``fail`` makes the
+(``set_mode``, ``disarm_in_flight``, ``set_battery``, ``raise_in_telemetry``,
+``end_telemetry``). ``fail`` makes the
 first N calls of a command raise VehicleError. Invariant checked on every tick: never in
 OFFBOARD without a setpoint for more than 1 s (``offboard_violations``).
 """
@@ -88,6 +89,7 @@ class FakeVehicle:
         self.vehicle_s = 0.0
         self._marks: dict[str, float] = {"start": 0.0}
         self._raise: BaseException | None = None
+        self._end_telemetry = False
         self.telemetry_runs = 0
         self.connected = False
         self.link_down_until = -math.inf
@@ -127,6 +129,9 @@ class FakeVehicle:
             if self._raise is not None:
                 exc, self._raise = self._raise, None
                 raise exc
+            if self._end_telemetry:
+                self._end_telemetry = False
+                return
 
     # -- port: commands ------------------------------------------------------------------------
 
@@ -205,6 +210,10 @@ class FakeVehicle:
 
     def raise_in_telemetry(self, exc: BaseException) -> None:
         self._raise = exc
+
+    def end_telemetry(self) -> None:
+        """The telemetry streams end (run_telemetry returns, once)."""
+        self._end_telemetry = True
 
     def drop_link(self, wall_s: float) -> None:
         """Nothing in either direction for `wall_s` wall seconds (setpoints are lost too)."""

@@ -15,8 +15,8 @@ import time
 
 import pytest
 
+from mexgen_gcs.io.plans import MissionPlanner
 from mexgen_gcs.mission import views
-from mexgen_gcs.mission.planning import MissionPlanner
 from tests.mission.fake_flight import fly, make_mission
 from tests.mission.fake_vehicle import FakeVehicle, Scripted
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from mexgen_gcs.core.area import SearchArea
+from mexgen_gcs.core.guidance import altitude_rate_m_s, stopping_point, velocity_setpoint
 from mexgen_gcs.io.vehicle import Telemetry
 from mexgen_gcs.mission.commander import Expectation, judge
-from mexgen_gcs.mission.guidance import altitude_rate_m_s, stopping_point, velocity_setpoint
 from mexgen_gcs.mission.safety import Action, SafetyInputs, SafetyLimits, decide
 
 AREA = SearchArea.rectangle(-500, 500, -500, 500)
@@ -152,7 +152,7 @@ def test_takeover_judgement(mode, armed, seen, in_grace, takeover):
 
 def test_predicted_excursion_is_its_kinematics():
     """The compiled guard equals its equations (module docstring) written with numpy."""
-    from mexgen_gcs.mission.guidance import predicted_excursion_m
+    from mexgen_gcs.core.guidance import predicted_excursion_m
 
     area = SearchArea.rectangle(-200.0, 200.0, -150.0, 150.0)
     rng = np.random.default_rng(3)

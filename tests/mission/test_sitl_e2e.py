@@ -350,3 +350,41 @@ def test_pilot_takeover_mid_search_stops_all_commands(tmp_path):
     # telemetry kept being logged until the landing
     tel_t = [r["t"] for r in log.of_type("telemetry")]
     assert tel_t[-1] >= takeover[0]["t"] + 25.0
+
+
+def test_a_second_sigterm_with_the_simulator_gone_exits_within_5_s(tmp_path):
+    """The vehicle is gone (its simulator process killed mid-search): the first SIGTERM asks
+    for a return that cannot happen, the second exits within 5 s, the log saying why (a
+    `signal_repeated` error, a result record with that end reason)."""
+    import signal
+
+    import psutil
+
+    out = tmp_path / "flights"
+    proc = _start_headless_sitl(out)
+    try:
+        log_file = _wait_for_offboard(out)
+        sims = [c for c in psutil.Process(proc.pid).children(recursive=True)
+                if "sim" in c.cmdline()]
+        assert sims
+        for sim in sims:
+            sim.kill()
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGTERM)
+        time.sleep(3.0)
+        assert proc.poll() is None  # the first one cannot be obeyed: still waiting
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=30)
+        exit_s = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert exit_s < 5.0, exit_s
+    assert proc.returncode == 1
+    assert "SIGTERM after SIGTERM" in stderr
+    log = read_flight_log(log_file)
+    repeated = [r for r in log.records if r.get("kind") == "signal_repeated"]
+    assert len(repeated) == 1 and repeated[0]["type"] == "error"
+    result = list(log.of_type("result"))
+    assert len(result) == 1 and result[0]["end_reason"] == "signal_repeated"

@@ -6,10 +6,13 @@ vehicle time and meet the radios' timestamps (no time-skew rejections once synce
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mexgen_gcs.io.flightlog import read_flight_log
 from mexgen_gcs.mission.run import SitlPorts, run_sitl
 from tests.mission.test_sitl_e2e import MISSIONS
+
+pytestmark = pytest.mark.e2e
 
 
 def test_mission_runs_on_the_boot_clock_when_system_time_unix_is_host_time(tmp_path):
@@ -24,10 +27,12 @@ def test_mission_runs_on_the_boot_clock_when_system_time_unix_is_host_time(tmp_p
     plan_t = np.array([r["t"] for r in log.of_type("plan")])
     gaps = np.diff(plan_t)
     assert len(gaps) >= 15
-    # 5 s of vehicle time (on the wall clock it would be 50 s); single plans run late by a
-    # fraction of a second when the machine is loaded (10x: 0.1 s wall is 1 s of vehicle time)
-    assert abs(float(np.median(gaps)) - 5.0) < 0.1, gaps
-    assert float(np.quantile(np.abs(gaps - 5.0), 0.9)) < 0.5, gaps
+    # 5 s of vehicle time; on the host clock it would be 50 s. Single plans run late when
+    # the machine is loaded (10x: 0.1 s wall is 1 s of vehicle time), so the bounds are the
+    # claim's: the median within 20 % of 5 s (the wrong clock is 10x off), and 90 % of the
+    # gaps within half an interval (no plan missed or doubled)
+    assert abs(float(np.median(gaps)) - 5.0) < 0.2 * 5.0, gaps
+    assert float(np.quantile(np.abs(gaps - 5.0), 0.9)) < 2.5, gaps
     # before the clock is known (the boot clock needs pairs spanning 2 s of host time) pulses
     # stamped 10x ahead of the wall clock are refused; once it is, none. Reject records sum up
     # what was refused since the previous one (every 0.5 s wall = 5 s vehicle): allow one

@@ -18,9 +18,8 @@ FLIGHT = textwrap.dedent("""
     from mexgen_gcs.config.loader import load_mission
     from mexgen_gcs.core.generators import METHODS
     from mexgen_gcs.core.planner import VehicleState
-    from mexgen_gcs.mission.guidance import velocity_setpoint
-    from mexgen_gcs.mission.planning import MissionPlanner
-    from mexgen_gcs.mission.run import build_core
+    from mexgen_gcs.core.guidance import velocity_setpoint
+    from mexgen_gcs.io.plans import MissionPlanner
     from mexgen_gcs.mission.warmup import warm_up
 
     mission = load_mission(sys.argv[1])
@@ -36,7 +35,7 @@ FLIGHT = textwrap.dedent("""
 
     ev.register("numba:compile", Compiles())
     rng = np.random.default_rng(7)
-    core = build_core(mission, rng)
+    core = mission.mission_core(rng)
     planner = MissionPlanner(mission)
     area = mission.search_area()
     for k in range(1, 41):  # 40 pulses on a circle, detections of every tag, plans every 5
@@ -66,6 +65,7 @@ def _compiles(proc: subprocess.Popen[str]) -> int:
     return int(out.split()[-1])
 
 
+@pytest.mark.long  # two Python processes compiling every kernel from an empty cache
 @pytest.mark.timeout(900)
 def test_after_warm_up_a_flight_compiles_nothing(tmp_path):
     cold, warm = _start(tmp_path, "cold"), _start(tmp_path, "warm")  # side by side: 2 cores

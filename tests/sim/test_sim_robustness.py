@@ -154,6 +154,7 @@ def test_garbage_and_hostile_messages(sim_factory: SimFactory, client: Any) -> N
     assert not any("Traceback" in line for line in sim.stderr_lines)
 
 
+@pytest.mark.e2e  # simulator processes (that exit at once)
 @pytest.mark.parametrize("bad_args", [
     ["--speedup", "0"], ["--sysid", "300"], ["--mavlink", "nonsense"],
     ["--fault", "meteor,at_s=3"], ["--fault", "link_drop,duration_s=3"],
@@ -170,6 +171,7 @@ def test_bad_flags_exit_2(bad_args: list[str]) -> None:
     assert "error" in done.stderr
 
 
+@pytest.mark.e2e
 def test_bad_mission_exits_2(tmp_path: Any) -> None:
     import subprocess
     import sys

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from mexgen_gcs.mission.snapshot import MissionSnapshot
+from mexgen_gcs.io.snapshot import MissionSnapshot
 from tests.ui.ui_helpers import make_snapshot
 
 

@@ -10,8 +10,8 @@ from dataclasses import replace
 import pytest
 
 from mexgen_gcs.errors import MexgenError
+from mexgen_gcs.io.snapshot import SnapshotBus
 from mexgen_gcs.mission.controller import MissionResult
-from mexgen_gcs.mission.snapshot import SnapshotBus
 from mexgen_gcs.ui.app import run_with_ui
 from mexgen_gcs.ui.confirm_screen import ConfirmScreen
 from tests.ui.ui_helpers import make_snapshot, until

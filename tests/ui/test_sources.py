@@ -6,7 +6,7 @@ import asyncio
 
 import pytest
 
-from mexgen_gcs.mission.snapshot import SnapshotBus
+from mexgen_gcs.io.snapshot import SnapshotBus
 from mexgen_gcs.ui.source import LiveSource
 from tests.ui.ui_helpers import later, make_snapshot
 

@@ -15,6 +15,8 @@ import threading
 import time
 from pathlib import Path
 
+import pytest
+
 from mexgen_gcs.ui.terminal_driver import NonBlockingWriter
 from mexgen_gcs.ui.terminal_logging import terminal_logging_held
 
@@ -33,7 +35,7 @@ def test_writer_never_blocks_on_a_stalled_pipe_and_recovers():
             t0 = time.monotonic()
             writer.write(frame)
             worst = max(worst, time.monotonic() - t0)
-        assert worst < 0.05
+        assert worst < 1.0  # a blocking write would wait for a reader forever
         assert writer.dropped > 150
         assert not caught_up.is_set()
         drained = 0
@@ -74,6 +76,7 @@ def _probe(mode: str, tmp_path: Path, seconds: float) -> dict | None:
         os.close(master)
 
 
+@pytest.mark.long  # the UI in a Python subprocess on a pty
 def test_ui_on_a_terminal_that_is_never_read_keeps_the_loop_running(tmp_path):
     result = _probe("nonblocking", tmp_path, seconds=3.0)
     assert result is not None, "the event loop stalled behind the terminal"

@@ -17,8 +17,8 @@ from typing import Literal
 import numpy as np
 
 from mexgen_gcs.io.records import Plan
+from mexgen_gcs.io.snapshot import MissionSnapshot, TagView
 from mexgen_gcs.io.vehicle import Telemetry
-from mexgen_gcs.mission.snapshot import MissionSnapshot, TagView
 
 AREA = ((-500.0, -100.0), (500.0, -100.0), (500.0, 900.0), (-500.0, 900.0))
 HEADINGS = tuple(float(h) for h in range(0, 360, 45))

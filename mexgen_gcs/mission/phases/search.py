@@ -20,18 +20,18 @@ import time
 
 import numpy as np
 
-from mexgen_gcs.errors import PlannerError, VehicleError
-from mexgen_gcs.io.records import Plan
-from mexgen_gcs.mission import safety
-from mexgen_gcs.mission.context import MissionContext
-from mexgen_gcs.mission.guidance import (
+from mexgen_gcs.core.guidance import (
     LATENCY_S,
     PX4_MPC_ACC_HOR_M_S2,
     Setpoint,
     velocity_setpoint,
 )
+from mexgen_gcs.errors import PlannerError, VehicleError
+from mexgen_gcs.io.plans import MissionPlanner
+from mexgen_gcs.io.records import Plan
+from mexgen_gcs.mission import safety
+from mexgen_gcs.mission.context import MissionContext
 from mexgen_gcs.mission.phases.common import SETPOINT_HZ, supervised
-from mexgen_gcs.mission.planning import MissionPlanner
 from mexgen_gcs.mission.state import EndReason, MissionState
 
 SAFETY_HZ = 5.0

@@ -1,5 +1,9 @@
 """Immutable mission snapshots, published a few times a second for the UI and progress lines.
 
+The one interface between a mission and what shows it: the flight publishes them on a
+``SnapshotBus`` (``mission.views`` builds them), and analysis rebuilds them from a flight log
+for replay, so both live below the two.
+
 Positions are WGS84 for display (lat/lon) plus local ENU metres about home where a map needs
 them. Nothing in a snapshot refers back to live mission objects.
 """

@@ -1,7 +1,9 @@
-"""The mission's planner worker: turns a MissionCore PlanRequest into a logged decision.
+"""The planner worker: turns a MissionCore PlanRequest into a decision as the flight log
+records it.
 
-Runs in the controller's single planner thread; it keeps one core Planner per method (each
-with its reusable workspace), so switching method in flight costs nothing after the first plan.
+A flight runs it in the controller's single planner thread, replay (analysis) in its own
+loop; it keeps one core Planner per method (each with its reusable workspace), so switching
+method in flight costs nothing after the first plan. It lives below both (no asyncio here).
 
 A decision has two forms: the core's `PlanResult` (arrays, inside the planner) and the flight
 log's `io.records.Plan`, which the log, the snapshots, the UI, analysis and replay all use.
@@ -15,19 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.mission_core import PlanRequest
-from mexgen_gcs.core.planner import Planner, PlannerConfig, PlanResult
+from mexgen_gcs.core.planner import Planner, PlanResult
 from mexgen_gcs.io.records import Plan
-
-
-def planner_config(mission: Any, method: str) -> PlannerConfig:
-    p = mission.planner
-    return PlannerConfig(
-        method=method_name(method), samples=p.samples, mc_rollouts=p.mc_rollouts,
-        lookahead_s=p.lookahead_s,
-        step_s=p.step_s, discount=p.discount, alpha=p.alpha, speed_m_s=mission.flight.speed_m_s,
-        max_accel_m_s2=mission.flight.max_accel_m_s2, action_cost_weight=p.action_cost_weight)
 
 
 class MissionPlanner:
@@ -41,7 +33,7 @@ class MissionPlanner:
 
     def planner(self, method: str) -> Planner:
         if method not in self._planners:
-            self._planners[method] = Planner(planner_config(self.mission, method), self.radio,
+            self._planners[method] = Planner(self.mission.planner_config(method), self.radio,
                                              self.area)
         return self._planners[method]
 
