@@ -57,6 +57,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("check", help="validate a mission file and print what it would fly")
     p.add_argument("mission", metavar="MISSION.yaml")
 
+    p = sub.add_parser("export-plan", help="write the mission's area (or its geofence) as a "
+                       "QGroundControl .plan, KML or GeoJSON file")
+    p.add_argument("mission", metavar="MISSION.yaml")
+    p.add_argument("-o", "--out", action="append", required=True, metavar="FILE",
+                   help="output file; its suffix picks the format: .plan (QGroundControl: "
+                        "geofence inclusion polygon and planned home), .kml, .geojson; "
+                        "repeat for several")
+    p.add_argument("--fence", action="store_true",
+                   help="write the geofence the GCS uploads (the area and home pushed out by "
+                        "safety.geofence_margin_m) instead of the area")
+
     p = sub.add_parser("sitl", help="start the simulator and the GCS together and fly the mission")
     p.add_argument("mission", metavar="MISSION.yaml")
     _add_flight_options(p)
@@ -214,6 +225,26 @@ def cmd_check(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_export_plan(args: argparse.Namespace) -> int:
+    """Write the mission's area (or fence) in the formats the output suffixes name."""
+    from mexgen_gcs.config import load_mission
+    from mexgen_gcs.config.area_files import AreaFileError, write_area_file
+
+    mission = load_mission(args.mission)
+    polygon = mission.area_polygon_deg(fence=args.fence)
+    home = (mission.home.lat_deg, mission.home.lon_deg, mission.home.alt_m or 0.0)
+    what = "geofence" if args.fence else "area"
+    for out in args.out:
+        try:
+            kind = write_area_file(out, polygon, home, f"{mission.name} {what}")
+        except AreaFileError as exc:
+            raise ConfigError(str(exc)) from None
+        except OSError as exc:
+            raise ConfigError(f"{out}: cannot write: {exc.strerror}") from None
+        print(f"{out}: {what} of {mission.name!r} ({len(polygon)} vertices) as {kind}")
+    return EXIT_OK
+
+
 def resolve_handler(command: str) -> tuple[Callable[[argparse.Namespace], int] | None, str]:
     """(handler, "") for a subcommand, or (None, why) if this build does not have it.
 
@@ -222,6 +253,8 @@ def resolve_handler(command: str) -> tuple[Callable[[argparse.Namespace], int] |
     """
     if command == "check":
         return cmd_check, ""
+    if command == "export-plan":
+        return cmd_export_plan, ""
     module_name, _, func_name = HANDLERS[command].partition(":")
     try:
         module = importlib.import_module(module_name)

@@ -103,7 +103,10 @@ LatLon = tuple[
 
 
 class Area(Section):
-    """The search area: exactly one of `rectangle_m` or `polygon_deg`."""
+    """The search area: exactly one of `rectangle_m`, `polygon_deg` or `from` (a file)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False,
+                              populate_by_name=True)
 
     rectangle_m: Rectangle | None = Field(
         None, description="Rectangle in metres about home (ENU): west_m, east_m, south_m, north_m."
@@ -113,13 +116,27 @@ class Area(Section):
         description="Simple polygon as [[lat_deg, lon_deg], ...], at least 3 vertices, "
         "either orientation, not closed (the last vertex joins the first).",
     )
+    from_file: Str | None = Field(
+        None, alias="from", min_length=1, max_length=4096,
+        description="The area from a file (relative paths from the mission file): a "
+        "QGroundControl .plan (its one geofence inclusion polygon), .kml (one Polygon) or "
+        ".geojson (one Polygon); the loader reads it into polygon_deg.",
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> Area:
+        if self.from_file is not None:
+            if self.rectangle_m is not None:
+                raise RuleViolation([((), "expected exactly one of rectangle_m, polygon_deg or "
+                                         "from; found rectangle_m and from")])
+            if self.polygon_deg is None:  # only the loader can read the file
+                raise RuleViolation([(("from",), f"{self.from_file!r} was not read; load the "
+                                      "mission with load_mission (relative to its file)")])
+            return self
         if (self.rectangle_m is None) == (self.polygon_deg is None):
             found = "both" if self.rectangle_m is not None else "neither"
-            raise RuleViolation([((), f"expected exactly one of rectangle_m or polygon_deg; "
-                                     f"found {found}")])
+            raise RuleViolation([((), f"expected exactly one of rectangle_m, polygon_deg or "
+                                     f"from; found {found}")])
         return self
 
 
