@@ -54,8 +54,16 @@ def build_parser() -> argparse.ArgumentParser:
                         help="logging level on stderr (default: warning)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    p = sub.add_parser("check", help="validate a mission file and print what it would fly")
+    p = sub.add_parser("check", help="validate a mission file and print what it would fly; "
+                       "with --connect, also the vehicle's safety parameters and fence")
     p.add_argument("mission", metavar="MISSION.yaml")
+    p.add_argument("--connect", default=None, metavar="URL",
+                   help="also read the vehicle's PX4 safety parameters and geofence over MAVLink "
+                        "(MAVSDK URL, e.g. udpin://0.0.0.0:14540) and refuse an unsafe set "
+                        "(exit 2)")
+    _add_accept_option(p)
+    p.add_argument("--connect-timeout", type=_positive_float, default=30.0, metavar="S",
+                   help="seconds to wait for the vehicle (default 30)")
 
     p = sub.add_parser("export-plan", help="write the mission's area (or its geofence) as a "
                        "QGroundControl .plan, KML or GeoJSON file")
@@ -157,7 +165,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_accept_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--accept-unsafe-params", type=_param_names, default=frozenset(),
+                   metavar="NAME[,NAME]",
+                   help="PX4 parameters whose unsafe value is accepted knowingly (a warning "
+                        "instead of a refusal); adds to the mission's safety.accept_px4_params")
+
+
+def _param_names(text: str) -> frozenset[str]:
+    from mexgen_gcs.config.schema import PX4_SAFETY_PARAMS
+
+    names = frozenset(n.strip() for n in text.split(",") if n.strip())
+    bad = sorted(names - set(PX4_SAFETY_PARAMS))
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"expected names from {', '.join(PX4_SAFETY_PARAMS)}; "
+                                         f"found {text!r}")
+    return names
+
+
 def _add_flight_options(p: argparse.ArgumentParser) -> None:
+    _add_accept_option(p)
     p.add_argument("--headless", action="store_true",
                    help="no terminal UI; progress goes to stderr")
     p.add_argument("--method", choices=METHODS, default=None,
@@ -222,7 +249,16 @@ def cmd_check(args: argparse.Namespace) -> int:
     else:
         print("No warnings.")
     print(f"{args.mission}: OK")
-    return EXIT_OK
+    if args.connect is None:
+        return EXIT_OK
+    # the vehicle's side lives with the MAVSDK adapter, looked up by name like the handlers
+    module = importlib.import_module("mexgen_gcs.io.px4_check")
+    code = int(module.check_vehicle(mission, args.connect, args.accept_unsafe_params,
+                                    args.connect_timeout))
+    if code == EXIT_BAD_INPUT:
+        print(f"{args.mission}: refused: the vehicle's parameters are unsafe for this mission "
+              "(see above)", file=sys.stderr)
+    return code
 
 
 def cmd_export_plan(args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ problem relative to the model that raised it, so the loader can point at the exa
 from __future__ import annotations
 
 import contextlib
+import difflib
 import ipaddress
 from collections.abc import Mapping
 from types import MappingProxyType
@@ -403,6 +404,13 @@ class Follow(Section):
                               description="How long to follow, seconds.")
 
 
+PX4_SAFETY_PARAMS = (
+    "COM_OBL_RC_ACT", "COM_OF_LOSS_T", "NAV_DLL_ACT", "COM_DL_LOSS_T", "GF_ACTION",
+    "GF_MAX_HOR_DIST", "GF_MAX_VER_DIST", "RTL_RETURN_ALT", "MPC_XY_VEL_MAX", "MPC_Z_VEL_MAX_UP",
+    "MPC_Z_VEL_MAX_DN", "COM_DISARM_PRFLT")
+"""The PX4 parameters the preflight check reads (config.px4_params judges them)."""
+
+
 class Safety(Section):
     """Limits and failsafes."""
 
@@ -422,6 +430,16 @@ class Safety(Section):
     geofence_margin_m: Float = Field(50.0, ge=0.0, le=10_000.0,
                                      description="Geofence distance outside the area, metres.")
     upload_geofence: Bool = Field(True, description="Upload the geofence to the vehicle.")
+    require_geofence: Bool = Field(
+        False, description="Refuse to arm (exit 2) when the vehicle does not accept the "
+        "geofence; false: warn and fly without it. Needs upload_geofence.")
+    replace_existing_geofence: Bool = Field(
+        False, description="Replace a geofence already on the vehicle (e.g. the pilot's, from "
+        "QGroundControl); false: show it and refuse to arm (exit 2).")
+    accept_px4_params: tuple[Str, ...] = Field(
+        (), max_length=len(PX4_SAFETY_PARAMS),
+        description="PX4 parameters whose unsafe value the preflight check accepts knowingly "
+        "(a warning instead of a refusal), e.g. [NAV_DLL_ACT]; see docs/field-kit.md.")
     home_max_distance_m: Float = Field(
         500.0, ge=0.0, le=100_000.0,
         description="Home (the mission's and the vehicle's) must be inside the area or at most "
@@ -437,3 +455,19 @@ class Safety(Section):
         description="Warn before arming when home.alt_m (if given) differs from the vehicle's "
         "home altitude by more than this, metres.",
     )
+
+    @model_validator(mode="after")
+    def _fence_and_params(self) -> Safety:
+        issues: list[tuple[KeyPath, str]] = []
+        if self.require_geofence and not self.upload_geofence:
+            issues.append((("require_geofence",), "require_geofence is true but upload_geofence "
+                           "is false; expected upload_geofence: true (or require_geofence: "
+                           "false)"))
+        for i, name in enumerate(self.accept_px4_params):
+            if name not in PX4_SAFETY_PARAMS:
+                close = difflib.get_close_matches(name, PX4_SAFETY_PARAMS, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                issues.append((("accept_px4_params", i), f"{name!r} is not a checked PX4 "
+                               f"parameter{hint}; expected one of {', '.join(PX4_SAFETY_PARAMS)}"))
+        check_rules(issues)
+        return self
