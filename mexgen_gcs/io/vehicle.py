@@ -26,10 +26,12 @@ import math
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.clock import BootAnchor
+from mexgen_gcs.io.mavlink_tap import MavlinkTap, tappable
 
 log = logging.getLogger(__name__)
 
@@ -213,8 +215,11 @@ class MavsdkVehicle:
 
     COMMAND_TIMEOUT_S = 10.0
 
-    def __init__(self) -> None:
+    def __init__(self, tlog_path: Path | None = None) -> None:
+        """`tlog_path`: write the MAVLink link there (io.mavlink_tap; UDP URLs only)."""
         self.hub = TelemetryHub()
+        self.tlog_path = tlog_path
+        self.tap: MavlinkTap | None = None
         self._mavsdk: Any = None
         self._system: Any = None
         self._plugins: dict[str, Any] = {}
@@ -232,6 +237,16 @@ class MavsdkVehicle:
         from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
         route_mavsdk_log()
+        if self.tlog_path is not None and self.tap is None:
+            if tappable(url):
+                try:
+                    self.tap = MavlinkTap(url, self.tlog_path)
+                except (OSError, ValueError) as exc:
+                    raise VehicleError(f"tap({url})", str(exc)) from exc
+            else:
+                log.warning("%s: not a UDP URL; no %s is written", url, self.tlog_path.name)
+        if self.tap is not None:
+            url = self.tap.gcs_url
         config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
         self._mavsdk = Mavsdk(config)
         try:
@@ -259,6 +274,9 @@ class MavsdkVehicle:
             with contextlib.suppress(Exception):
                 self._mavsdk.destroy()
             self._mavsdk = None
+        if self.tap is not None:
+            await asyncio.to_thread(self.tap.close)
+            self.tap = None
 
     # -- telemetry ---------------------------------------------------------------------------
 
