@@ -54,8 +54,27 @@ def build_parser() -> argparse.ArgumentParser:
                         help="logging level on stderr (default: warning)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
-    p = sub.add_parser("check", help="validate a mission file and print what it would fly")
+    p = sub.add_parser("check", help="validate a mission file and print what it would fly; "
+                       "with --connect, also the vehicle's safety parameters and fence")
     p.add_argument("mission", metavar="MISSION.yaml")
+    p.add_argument("--connect", default=None, metavar="URL",
+                   help="also read the vehicle's PX4 safety parameters and geofence over MAVLink "
+                        "(MAVSDK URL, e.g. udpin://0.0.0.0:14540) and refuse an unsafe set "
+                        "(exit 2)")
+    _add_accept_option(p)
+    p.add_argument("--connect-timeout", type=_positive_float, default=30.0, metavar="S",
+                   help="seconds to wait for the vehicle (default 30)")
+
+    p = sub.add_parser("export-plan", help="write the mission's area (or its geofence) as a "
+                       "QGroundControl .plan, KML or GeoJSON file")
+    p.add_argument("mission", metavar="MISSION.yaml")
+    p.add_argument("-o", "--out", action="append", required=True, metavar="FILE",
+                   help="output file; its suffix picks the format: .plan (QGroundControl: "
+                        "geofence inclusion polygon and planned home), .kml, .geojson; "
+                        "repeat for several")
+    p.add_argument("--fence", action="store_true",
+                   help="write the geofence the GCS uploads (the area and home pushed out by "
+                        "safety.geofence_margin_m) instead of the area")
 
     p = sub.add_parser("sitl", help="start the simulator and the GCS together and fly the mission")
     p.add_argument("mission", metavar="MISSION.yaml")
@@ -146,7 +165,26 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_accept_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--accept-unsafe-params", type=_param_names, default=frozenset(),
+                   metavar="NAME[,NAME]",
+                   help="PX4 parameters whose unsafe value is accepted knowingly (a warning "
+                        "instead of a refusal); adds to the mission's safety.accept_px4_params")
+
+
+def _param_names(text: str) -> frozenset[str]:
+    from mexgen_gcs.config.schema import PX4_SAFETY_PARAMS
+
+    names = frozenset(n.strip() for n in text.split(",") if n.strip())
+    bad = sorted(names - set(PX4_SAFETY_PARAMS))
+    if bad or not names:
+        raise argparse.ArgumentTypeError(f"expected names from {', '.join(PX4_SAFETY_PARAMS)}; "
+                                         f"found {text!r}")
+    return names
+
+
 def _add_flight_options(p: argparse.ArgumentParser) -> None:
+    _add_accept_option(p)
     p.add_argument("--headless", action="store_true",
                    help="no terminal UI; progress goes to stderr")
     p.add_argument("--method", choices=METHODS, default=None,
@@ -211,6 +249,35 @@ def cmd_check(args: argparse.Namespace) -> int:
     else:
         print("No warnings.")
     print(f"{args.mission}: OK")
+    if args.connect is None:
+        return EXIT_OK
+    # the vehicle's side lives with the MAVSDK adapter, looked up by name like the handlers
+    module = importlib.import_module("mexgen_gcs.io.px4_check")
+    code = int(module.check_vehicle(mission, args.connect, args.accept_unsafe_params,
+                                    args.connect_timeout))
+    if code == EXIT_BAD_INPUT:
+        print(f"{args.mission}: refused: the vehicle's parameters are unsafe for this mission "
+              "(see above)", file=sys.stderr)
+    return code
+
+
+def cmd_export_plan(args: argparse.Namespace) -> int:
+    """Write the mission's area (or fence) in the formats the output suffixes name."""
+    from mexgen_gcs.config import load_mission
+    from mexgen_gcs.config.area_files import AreaFileError, write_area_file
+
+    mission = load_mission(args.mission)
+    polygon = mission.area_polygon_deg(fence=args.fence)
+    home = (mission.home.lat_deg, mission.home.lon_deg, mission.home.alt_m or 0.0)
+    what = "geofence" if args.fence else "area"
+    for out in args.out:
+        try:
+            kind = write_area_file(out, polygon, home, f"{mission.name} {what}")
+        except AreaFileError as exc:
+            raise ConfigError(str(exc)) from None
+        except OSError as exc:
+            raise ConfigError(f"{out}: cannot write: {exc.strerror}") from None
+        print(f"{out}: {what} of {mission.name!r} ({len(polygon)} vertices) as {kind}")
     return EXIT_OK
 
 
@@ -222,6 +289,8 @@ def resolve_handler(command: str) -> tuple[Callable[[argparse.Namespace], int] |
     """
     if command == "check":
         return cmd_check, ""
+    if command == "export-plan":
+        return cmd_export_plan, ""
     module_name, _, func_name = HANDLERS[command].partition(":")
     try:
         module = importlib.import_module(module_name)

@@ -17,9 +17,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from mexgen_gcs.config import Mission, load_mission
+from mexgen_gcs.config.area_files import AreaFileError, read_area_file
 from mexgen_gcs.errors import ConfigError
 from sim.clock import SYSTEM_TIME_SOURCES
 from sim.faults import KINDS, parse_fault_flag
+from sim.params import parse_param_flag
 from sim.rider import RadioRider, RiderOptions
 from sim.runner import Simulation
 from sim.scenario import Address, SimOptions, faults_of
@@ -69,6 +71,13 @@ def _vehicle(text: str) -> VehicleEndpoint:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _param(text: str) -> tuple[str, float]:
+    try:
+        return parse_param_flag(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _sysid(text: str) -> int:
     if not text.isdigit() or not 1 <= int(text) <= 255:
         raise argparse.ArgumentTypeError(f"expected a system id 1..255, got {text!r}")
@@ -107,6 +116,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--fault", type=_fault, action="append", default=[], metavar="SPEC",
                    help="add a fault, KIND,at_s=S[,field=value]; kinds: "
                         + ", ".join(f"{k}({', '.join(v)})" for k, v in KINDS.items()))
+    p.add_argument("--param", type=_param, action="append", default=[], metavar="NAME=VALUE",
+                   help="set a PX4 parameter before the start, e.g. NAV_DLL_ACT=0 (repeatable; "
+                        "the defaults are PX4 SITL's)")
+    p.add_argument("--fence", type=Path, default=None, metavar="FILE",
+                   help="start with this inclusion fence on board, as if the pilot's station had "
+                        "uploaded it (a .plan, .kml or .geojson polygon, as area.from reads)")
     p.add_argument("--keep-running", action="store_true",
                    help="do not exit after landing and disarming")
     p.add_argument("--no-radios", action="store_true",
@@ -152,12 +167,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if args.radios_only:
         return _radios_only(mission, args)
+    fence: tuple[tuple[float, float], ...] = ()
+    if args.fence is not None:
+        try:
+            fence = tuple(read_area_file(args.fence, mission.home.lat_deg, mission.home.lon_deg))
+        except AreaFileError as exc:
+            print(f"sim: --fence: {exc}", file=sys.stderr)
+            return 2
     options = SimOptions(
         speedup=args.speedup, clock_rate_error=args.clock_rate_error,
         system_time=args.system_time, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
         radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
         extra_faults=tuple(args.fault), keep_running=args.keep_running,
-        radios=not args.no_radios)
+        radios=not args.no_radios, params=tuple(args.param), fence_latlon_deg=fence)
     try:
         sim = Simulation(mission, options)
     except (OSError, ValueError) as exc:

@@ -111,3 +111,11 @@ def build_fence(
         i += 1
     return Fence(tuple(inc_poly), tuple(exc_poly), tuple(inc_circ), tuple(exc_circ),
                  tuple(items))
+
+
+def inclusion_items(polygon_latlon_deg: list[tuple[float, float]]) -> list[FenceItem]:
+    """One inclusion polygon as the fence items a ground station uploads (MAV_FRAME_GLOBAL,
+    param1 = the vertex count), e.g. a fence the pilot's station put there before ours."""
+    n = len(polygon_latlon_deg)
+    return [FenceItem(FENCE_POLYGON_VERTEX_INCLUSION, 0, float(n), lat, lon, 0.0)
+            for lat, lon in polygon_latlon_deg]

@@ -75,7 +75,8 @@ class Simulation:
         world_rng, radio_rng, vehicle_rng = (np.random.default_rng(s) for s in seeds)
         self.truth = TruthWriter(options.truth_dir)
         self.faults = FaultSchedule(faults_of(mission, options))
-        self.autopilot = Autopilot(ParamTable(initial_params(mission)), airframe_limits(mission),
+        self.autopilot = Autopilot(ParamTable(initial_params(mission, options)),
+                                   airframe_limits(mission),
                                    mission.sim.battery_endurance_s, self.frame.alt0_m,
                                    vehicle_rng)
         self._mav_transport: asyncio.DatagramTransport | None = None
@@ -84,6 +85,8 @@ class Simulation:
         self.vehicle = MavlinkVehicle(self.autopilot, self.clock, self.frame, self._mav_sendto,
                                       targets, options.sysid, on_fence=self._fence_accepted,
                                       on_command=self._command_received)
+        if options.fence_latlon_deg:
+            self.vehicle.preload_fence(list(options.fence_latlon_deg))
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
                               self.clock.unix_of, radio_rng,

@@ -37,6 +37,10 @@ class SimOptions:
     extra_faults: tuple[Fault, ...] = field(default=())
     keep_running: bool = False
     radios: bool = True
+    params: tuple[tuple[str, float], ...] = field(default=())
+    """PX4 parameters set before the start (``--param NAME=VALUE``), over the defaults."""
+    fence_latlon_deg: tuple[tuple[float, float], ...] = field(default=())
+    """An inclusion fence already on board at the start (``--fence FILE``)."""
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:
@@ -48,9 +52,11 @@ def airframe_limits(mission: Mission) -> Limits:
     return Limits(max_speed_m_s=15.0, max_accel_m_s2=mission.flight.max_accel_m_s2)
 
 
-def initial_params(mission: Mission) -> dict[str, float]:
-    """PX4 defaults except MPC_ACC_HOR, which follows the mission's max_accel_m_s2."""
-    return {"MPC_ACC_HOR": mission.flight.max_accel_m_s2}
+def initial_params(mission: Mission, options: SimOptions | None = None) -> dict[str, float]:
+    """PX4 SITL defaults except MPC_ACC_HOR, which follows the mission's max_accel_m_s2, and
+    the ``--param`` values, which win."""
+    return {"MPC_ACC_HOR": mission.flight.max_accel_m_s2,
+            **dict(options.params if options is not None else ())}
 
 
 def faults_of(mission: Mission, options: SimOptions) -> list[Fault]:

@@ -23,9 +23,9 @@ from mexgen_gcs.core.geo import LocalFrame
 from sim.autopilot import Autopilot, Event, Setpoint
 from sim.clock import SimClock
 from sim.commands import CommandHandler
-from sim.fence import Fence
+from sim.fence import Fence, build_fence, inclusion_items
 from sim.mission_protocol import FenceProtocol
-from sim.params import decode_param_id
+from sim.params import decode_param_id, int_from_wire, int_to_wire
 from sim.setpoints import Parsed, from_global_int, from_local_ned
 from sim.telemetry import TelemetryBuilder
 
@@ -308,9 +308,12 @@ class MavlinkVehicle:
 
     def _param_value(self, name: str) -> None:
         table = self.ap.params
+        if table.kind(name) == "int":
+            value, kind = int_to_wire(round(table[name])), mavlink.MAV_PARAM_TYPE_INT32
+        else:
+            value, kind = table[name], mavlink.MAV_PARAM_TYPE_REAL32
         self.send(self.mav.param_value_encode(
-            name.encode("ascii"), table[name], mavlink.MAV_PARAM_TYPE_REAL32, len(table),
-            table.index(name)))
+            name.encode("ascii"), value, kind, len(table), table.index(name)))
 
     def _param(self, msg: Any) -> None:
         table = self.ap.params
@@ -326,7 +329,10 @@ class MavlinkVehicle:
         if name is None or not table.has(name):
             return  # PX4 does not answer unknown parameters
         if kind == "PARAM_SET":
-            table.set(name, float(msg.param_value))
+            value = float(msg.param_value)
+            if table.kind(name) == "int" and msg.param_type != mavlink.MAV_PARAM_TYPE_REAL32:
+                value = float(int_from_wire(value))  # bytewise, as PX4 expects
+            table.set(name, round(value) if table.kind(name) == "int" else value)
         self._param_value(name)
 
     # -- offboard setpoints ----------------------------------------------------------------
@@ -346,6 +352,12 @@ class MavlinkVehicle:
     def _lat_lon_to_en(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         e, n, _ = self.frame.to_enu(lat_deg, lon_deg, self.frame.alt0_m)
         return float(e), float(n)
+
+    def preload_fence(self, polygon_latlon_deg: list[tuple[float, float]]) -> None:
+        """Start with an inclusion fence on board, as if another station had uploaded it."""
+        fence = build_fence(inclusion_items(polygon_latlon_deg), self._lat_lon_to_en)
+        self.fence.fence = fence
+        self._fence_set(fence)
 
     def _fence_set(self, fence: Fence) -> None:
         self.ap.fence = fence

@@ -186,7 +186,7 @@ def test_every_command_and_flag_is_documented() -> None:
     text = (REPO / "docs" / "cli.md").read_text(encoding="utf-8")
     parser = cli.build_parser()
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(sub.choices) == set(cli.HANDLERS) | {"check"}
+    assert set(sub.choices) == set(cli.HANDLERS) | {"check", "export-plan"}
     for name, subparser in sub.choices.items():
         assert f"## `mexgen-gcs {name}" in text, name
         for flag in _flags(subparser):

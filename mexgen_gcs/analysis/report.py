@@ -19,8 +19,10 @@ from mexgen_gcs.analysis.document import Document, fmt
 from mexgen_gcs.analysis.flightdata import FlightData
 from mexgen_gcs.analysis.summary import FlightSummary, summarise
 from mexgen_gcs.analysis.truth import Truth
+from mexgen_gcs.analysis.vehicle_link import VehicleLink, read_vehicle_link
 from mexgen_gcs.errors import EstimationError
 from mexgen_gcs.io.logread import Damage
+from mexgen_gcs.io.mavlink_tap import TLOG_FILE
 
 REPORT_MD = "report.md"
 REPORT_HTML = "report.html"
@@ -74,7 +76,8 @@ def write_report(flight: FlightData, out_dir: Path, truth: Truth | None = None) 
         "rssi": plots.plot_rssi_distance(flight, fits.get("estimate"), out_dir / PLOTS["rssi"]),
         "timing": plots.plot_planner_timing(flight, out_dir / PLOTS["timing"]),
     }
-    doc = report_document(flight, summary, fits)
+    link = vehicle_link_of(flight)
+    doc = report_document(flight, summary, fits, link)
     md = out_dir / REPORT_MD
     md.write_text(doc.markdown(), encoding="utf-8")
     page = out_dir / REPORT_HTML
@@ -82,8 +85,15 @@ def write_report(flight: FlightData, out_dir: Path, truth: Truth | None = None) 
     js = out_dir / SUMMARY_JSON
     payload: dict[str, Any] = summary.to_dict()
     payload["path_loss_fits"] = {k: asdict(v) for k, v in fits.items()}
+    payload["vehicle_link"] = link.to_dict() if link is not None else None
     js.write_text(json.dumps(json_safe(payload), indent=1), encoding="utf-8")
     return Report(out_dir, md, page, js, paths, summary, fits)
+
+
+def vehicle_link_of(flight: FlightData) -> VehicleLink | None:
+    """The summary of the vehicle.tlog beside the flight log, if there is one."""
+    tlog = Path(flight.log.path).parent / TLOG_FILE
+    return read_vehicle_link(tlog) if tlog.is_file() else None
 
 
 def json_safe(value: Any) -> Any:
@@ -107,7 +117,7 @@ def _damage(lines: dict[str, list[int]]) -> str:
 
 
 def report_document(flight: FlightData, s: FlightSummary,
-                    fits: dict[str, PathLossFit]) -> Document:
+                    fits: dict[str, PathLossFit], link: VehicleLink | None = None) -> Document:
     tot = s.totals
     seed = f", seed {tot.seed}" if tot.seed is not None else ""
     doc = Document(f"Flight report: {tot.name} ({tot.method}{seed})")
@@ -148,6 +158,9 @@ def report_document(flight: FlightData, s: FlightSummary,
                   [(fmt(e.after_s), e.kind, e.detail) for e in s.safety_events])
     else:
         sec.para("None.")
+
+    if link is not None:
+        _vehicle_link_section(doc, link)
 
     sec = doc.section("Tags")
     headers = ["tag", "detections", "localised after (s)", "lat", "lon", "east (m)",
@@ -231,3 +244,24 @@ def coverage_sentence(tags: Sequence[Any], confidence: float) -> str:
     return (f"Coverage: {k} of {n} localised tags were inside the radius claimed at "
             f"localisation ({k / n:.0%}, 95 % interval {ci.low:.0%}-{ci.high:.0%}); the claim "
             f"is {confidence:.0%}." + tail)
+
+
+def _vehicle_link_section(doc: Document, link: VehicleLink) -> None:
+    sec = doc.section("The vehicle's own view (vehicle.tlog)")
+    sec.para(f"{link.messages} MAVLink messages over {link.duration_s:.1f} s of wall time; "
+             f"{link.positions} positions from the autopilot"
+             + (f", highest {link.max_rel_alt_m:.1f} m above home" if link.max_rel_alt_m
+                is not None else "") + ". On the link: "
+             + (", ".join(f"{k} ({v})" for k, v in link.systems.items()) or "nobody") + ".")
+    if link.modes:
+        sec.table(("t (s)", "mode", "armed"),
+                  [(f"{t:.1f}", mode, "yes" if armed else "no") for t, mode, armed in link.modes])
+    if link.commands:
+        sec.table(("command to the autopilot", "count"),
+                  [(k, str(v)) for k, v in sorted(link.commands.items())])
+    if link.denied:
+        sec.para("Not accepted: " + ", ".join(f"{k} ({v})" for k, v in link.denied.items())
+                 + ".")
+    if link.statustexts:
+        sec.table(("t (s)", "autopilot says"), [(f"{t:.1f}", text)
+                                                for t, text in link.statustexts[:40]])

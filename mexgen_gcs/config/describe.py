@@ -48,6 +48,8 @@ def describe(mission: Mission) -> str:
         lines.append(f"  area       polygon of {len(area.vertices_m)} vertices, {km2:.2f} km^2, "
                      f"bounding box {size}; about home: east {w:.0f}..{e:.0f} m, north "
                      f"{s:.0f}..{n:.0f} m")
+    if m.area.from_file is not None:
+        lines[-1] += f" (from {m.area.from_file})"
     corners = {"SW": (w, s), "SE": (e, s), "NE": (e, n), "NW": (w, n)}
     if m.area.polygon_deg is not None:
         corners = {f"v{i}": (float(x), float(y)) for i, (x, y) in enumerate(area.vertices_m)}
@@ -137,7 +139,8 @@ def schema_reference() -> Iterator[KeyDoc]:
 
 
 def _model_rows(model: type[BaseModel], prefix: str) -> Iterator[KeyDoc]:
-    for name, field in model.model_fields.items():
+    for attr, field in model.model_fields.items():
+        name = field.alias or attr
         sub = _sub_model(field.annotation)
         if field.default is PydanticUndefined and field.default_factory is None:
             default = "required"

@@ -22,6 +22,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
+from mexgen_gcs.config.area_files import AreaFileError, read_area_file
 from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.config.safe_yaml import MAX_BYTES, compose_and_load
 from mexgen_gcs.config.schema import TAG_ID_PATTERN, KeyPath, RuleViolation
@@ -105,6 +106,10 @@ def parse_mission(text: str, source: str = "<mission>") -> Mission:
     _walk_nodes(root, (), lines, duplicates)
     if duplicates:
         raise MissionFileError(source, duplicates)
+    area_problem = _read_area_file(data, source)
+    if area_problem is not None:
+        raise MissionFileError(source, [Problem(area_problem.path, area_problem.message,
+                                                _line_of(area_problem.path, lines))])
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:
@@ -112,6 +117,35 @@ def parse_mission(text: str, source: str = "<mission>") -> Mission:
         located = [Problem(p.path, p.message, _line_of(p.path, lines)) for p in problems]
         raise MissionFileError(source, located) from None
     return mission.with_source(source, text)
+
+
+def _read_area_file(data: dict[str, Any], source: str) -> Problem | None:
+    """``area.from: FILE`` -> ``area.polygon_deg`` read from FILE (relative to the mission
+    file), in place; a Problem at ``area.from`` if it cannot be used. The key stays, so the
+    resolved mission says where its polygon came from."""
+    area, home = data.get("area"), data.get("home")
+    if not isinstance(area, dict) or "from" not in area:
+        return None
+    name = area["from"]
+    if not isinstance(name, str) or not name:
+        return Problem(("area", "from"), f"expected a file name (text); found {_show(name)}")
+    others = [k for k in ("rectangle_m", "polygon_deg") if k in area]
+    if others:
+        return Problem(("area", "from"), f"expected exactly one of rectangle_m, polygon_deg or "
+                       f"from; found from and {' and '.join(others)}")
+    try:
+        lat, lon = float(home["lat_deg"]), float(home["lon_deg"])  # type: ignore[index]
+    except (KeyError, TypeError, ValueError):
+        return None  # the schema reports the home problem; the area waits for it
+    path = Path(name).expanduser()
+    if not path.is_absolute():
+        path = Path(source).parent / path
+    try:
+        polygon = read_area_file(path, lat, lon)
+    except AreaFileError as exc:
+        return Problem(("area", "from"), str(exc))
+    area["polygon_deg"] = [[a, b] for a, b in polygon]
+    return None
 
 
 # -- YAML node marks ---------------------------------------------------------------------
@@ -278,7 +312,9 @@ def _missing_message(path: KeyPath, data: Any) -> str:
 
 def _allowed_keys(path: KeyPath, data: Any) -> list[str]:
     model = _model_at(path, data)
-    return list(model.model_fields) if model is not None else []
+    if model is None:
+        return []
+    return [f.alias or name for name, f in model.model_fields.items()]
 
 
 def _model_at(path: KeyPath, data: Any) -> type[BaseModel] | None:

@@ -13,6 +13,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, PrivateAttr, field_validator, model_validator
 
+from mexgen_gcs.config.area_files import self_intersection
 from mexgen_gcs.config.schema import (
     Area,
     FilterSection,
@@ -134,7 +135,7 @@ class Mission(Section):
             issues.append((("area",), f"expected a polygon with non-zero area; {exc}"))
             return None
         if self.area.polygon_deg is not None:
-            crossing = _self_intersection(area.vertices_m)
+            crossing = self_intersection(area.vertices_m)
             if crossing is not None:
                 i, j = crossing
                 issues.append((("area", "polygon_deg"), f"edges {i}-{i + 1} and {j}-"
@@ -228,6 +229,18 @@ class Mission(Section):
         lat_lon = np.asarray(self.area.polygon_deg, dtype=np.float64)
         east, north, _ = self.local_frame().to_enu(lat_lon[:, 0], lat_lon[:, 1])
         return SearchArea(np.column_stack([east, north]))
+
+    def area_polygon_deg(self, *, fence: bool = False) -> list[tuple[float, float]]:
+        """The search area as [(lat_deg, lon_deg)] (a rectangle's four corners), or with
+        ``fence`` the geofence the GCS uploads before take-off (the convex hull of the area and
+        the mission home pushed out by safety.geofence_margin_m; in flight the vehicle's home
+        is added too)."""
+        area = self.search_area()
+        vertices = (area.fence_polygon(self.safety.geofence_margin_m, np.zeros((1, 2)))
+                    if fence else area.vertices_m)
+        lat, lon, _ = self.local_frame().to_geodetic(vertices[:, 0], vertices[:, 1])
+        return [(float(a), float(b)) for a, b in zip(np.atleast_1d(lat), np.atleast_1d(lon),
+                                                     strict=True)]
 
     def radio_model(self) -> RadioModel:
         """The core radio model with this mission's parameters."""
@@ -326,23 +339,3 @@ class Mission(Section):
 def _did_you_mean(word: str, choices: tuple[str, ...] | list[str]) -> str:
     close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-def _self_intersection(v: np.ndarray) -> tuple[int, int] | None:
-    """First pair of non-adjacent polygon edges that cross, or None. O(K^2), K vertices."""
-    k = len(v)
-
-    def orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
-        return float((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
-
-    for i in range(k):
-        a, b = v[i], v[(i + 1) % k]
-        for j in range(i + 1, k):
-            if j == i + 1 or (i == 0 and j == k - 1):
-                continue  # adjacent edges share a vertex
-            c, d = v[j], v[(j + 1) % k]
-            d1, d2 = orient(a, b, c), orient(a, b, d)
-            d3, d4 = orient(c, d, a), orient(c, d, b)
-            if (d1 * d2 < 0.0) and (d3 * d4 < 0.0):
-                return i, j
-    return None

@@ -12,6 +12,7 @@ problem relative to the model that raised it, so the loader can point at the exa
 from __future__ import annotations
 
 import contextlib
+import difflib
 import ipaddress
 from collections.abc import Mapping
 from types import MappingProxyType
@@ -103,7 +104,10 @@ LatLon = tuple[
 
 
 class Area(Section):
-    """The search area: exactly one of `rectangle_m` or `polygon_deg`."""
+    """The search area: exactly one of `rectangle_m`, `polygon_deg` or `from` (a file)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False,
+                              populate_by_name=True)
 
     rectangle_m: Rectangle | None = Field(
         None, description="Rectangle in metres about home (ENU): west_m, east_m, south_m, north_m."
@@ -113,13 +117,27 @@ class Area(Section):
         description="Simple polygon as [[lat_deg, lon_deg], ...], at least 3 vertices, "
         "either orientation, not closed (the last vertex joins the first).",
     )
+    from_file: Str | None = Field(
+        None, alias="from", min_length=1, max_length=4096,
+        description="The area from a file (relative paths from the mission file): a "
+        "QGroundControl .plan (its one geofence inclusion polygon), .kml (one Polygon) or "
+        ".geojson (one Polygon); the loader reads it into polygon_deg.",
+    )
 
     @model_validator(mode="after")
     def _exactly_one(self) -> Area:
+        if self.from_file is not None:
+            if self.rectangle_m is not None:
+                raise RuleViolation([((), "expected exactly one of rectangle_m, polygon_deg or "
+                                         "from; found rectangle_m and from")])
+            if self.polygon_deg is None:  # only the loader can read the file
+                raise RuleViolation([(("from",), f"{self.from_file!r} was not read; load the "
+                                      "mission with load_mission (relative to its file)")])
+            return self
         if (self.rectangle_m is None) == (self.polygon_deg is None):
             found = "both" if self.rectangle_m is not None else "neither"
-            raise RuleViolation([((), f"expected exactly one of rectangle_m or polygon_deg; "
-                                     f"found {found}")])
+            raise RuleViolation([((), f"expected exactly one of rectangle_m, polygon_deg or "
+                                     f"from; found {found}")])
         return self
 
 
@@ -396,6 +414,13 @@ class LogSection(Section):
         "null: never (the operating system decides).")
 
 
+PX4_SAFETY_PARAMS = (
+    "COM_OBL_RC_ACT", "COM_OF_LOSS_T", "NAV_DLL_ACT", "COM_DL_LOSS_T", "GF_ACTION",
+    "GF_MAX_HOR_DIST", "GF_MAX_VER_DIST", "RTL_RETURN_ALT", "MPC_XY_VEL_MAX", "MPC_Z_VEL_MAX_UP",
+    "MPC_Z_VEL_MAX_DN", "COM_DISARM_PRFLT")
+"""The PX4 parameters the preflight check reads (config.px4_params judges them)."""
+
+
 class Safety(Section):
     """Limits and failsafes."""
 
@@ -415,6 +440,16 @@ class Safety(Section):
     geofence_margin_m: Float = Field(50.0, ge=0.0, le=10_000.0,
                                      description="Geofence distance outside the area, metres.")
     upload_geofence: Bool = Field(True, description="Upload the geofence to the vehicle.")
+    require_geofence: Bool = Field(
+        False, description="Refuse to arm (exit 2) when the vehicle does not accept the "
+        "geofence; false: warn and fly without it. Needs upload_geofence.")
+    replace_existing_geofence: Bool = Field(
+        False, description="Replace a geofence already on the vehicle (e.g. the pilot's, from "
+        "QGroundControl); false: show it and refuse to arm (exit 2).")
+    accept_px4_params: tuple[Str, ...] = Field(
+        (), max_length=len(PX4_SAFETY_PARAMS),
+        description="PX4 parameters whose unsafe value the preflight check accepts knowingly "
+        "(a warning instead of a refusal), e.g. [NAV_DLL_ACT]; see docs/field-kit.md.")
     home_max_distance_m: Float = Field(
         500.0, ge=0.0, le=100_000.0,
         description="Home (the mission's and the vehicle's) must be inside the area or at most "
@@ -430,3 +465,19 @@ class Safety(Section):
         description="Warn before arming when home.alt_m (if given) differs from the vehicle's "
         "home altitude by more than this, metres.",
     )
+
+    @model_validator(mode="after")
+    def _fence_and_params(self) -> Safety:
+        issues: list[tuple[KeyPath, str]] = []
+        if self.require_geofence and not self.upload_geofence:
+            issues.append((("require_geofence",), "require_geofence is true but upload_geofence "
+                           "is false; expected upload_geofence: true (or require_geofence: "
+                           "false)"))
+        for i, name in enumerate(self.accept_px4_params):
+            if name not in PX4_SAFETY_PARAMS:
+                close = difflib.get_close_matches(name, PX4_SAFETY_PARAMS, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                issues.append((("accept_px4_params", i), f"{name!r} is not a checked PX4 "
+                               f"parameter{hint}; expected one of {', '.join(PX4_SAFETY_PARAMS)}"))
+        check_rules(issues)
+        return self

@@ -215,6 +215,16 @@ class Error(Record):
     kind: str = f("What went wrong; the other fields depend on it.")
 
 
+class OperatorWarning(Record):
+    """Something the operator must see before or during the flight (a geofence the vehicle
+    refused, a risky vehicle parameter, a home mismatch): also on stderr and, while it holds,
+    in the terminal UI's warnings."""
+
+    type: Literal["warning"]
+    kind: str = f("What is wrong (geofence_not_accepted, vehicle_param, home_mismatch, ...).")
+    text: str = f("The sentence shown to the operator.")
+
+
 class StatusText(Record):
     """A STATUSTEXT message from the autopilot."""
 
@@ -282,7 +292,8 @@ class Result(Record):
     type: Literal["result"]
     end_reason: str = f("Why the mission ended (all_localised, max_mission_time, operator_rtl, "
                         "takeover...).")
-    exit_code: int = f("The command's exit code: 0 success, 1 failed or aborted.", ge=0)
+    exit_code: int = f("The command's exit code: 0 success, 1 failed or aborted, 2 refused "
+                       "before arming for the vehicle's set-up (parameters, geofence).", ge=0)
     localised: dict[str, Localised] = f("Localised tags by id.")
     unresolved: dict[str, Unresolved] | None = f(
         "The last estimate of every tag not localised, by id (absent before 2026-11).",
@@ -298,7 +309,7 @@ class Result(Record):
 
 FLIGHT_RECORDS: tuple[type[Record], ...] = (
     MissionHeader, Telemetry, Detection, Radio, Estimate, Cloud, Plan, Setpoint, Reject,
-    Event, Error, StatusText, Clock, LogLoss, Result)
+    Event, Error, OperatorWarning, StatusText, Clock, LogLoss, Result)
 
 
 # -- simulator truth ----------------------------------------------------------------------

@@ -24,12 +24,14 @@ import json
 import logging
 import math
 import time
-from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine
+from collections.abc import AsyncIterator, Awaitable, Callable, Coroutine, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.clock import BootAnchor
+from mexgen_gcs.io.mavlink_tap import MavlinkTap, tappable
 
 log = logging.getLogger(__name__)
 
@@ -152,6 +154,8 @@ class Vehicle(Protocol):
     async def run_telemetry(self) -> None: ...
     async def wait_ready(self, timeout_s: float) -> None: ...
     async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool: ...
+    async def read_params(self, specs: Sequence[tuple[str, str]]) -> dict[str, float | None]: ...
+    async def download_geofence(self) -> list[list[tuple[float, float]]]: ...
     async def arm(self) -> None: ...
     async def takeoff(self, alt_m: float) -> None: ...
     async def start_offboard(self, yaw_deg: float) -> None: ...
@@ -217,8 +221,11 @@ class MavsdkVehicle:
 
     COMMAND_TIMEOUT_S = 10.0
 
-    def __init__(self) -> None:
+    def __init__(self, tlog_path: Path | None = None) -> None:
+        """`tlog_path`: write the MAVLink link there (io.mavlink_tap; UDP URLs only)."""
         self.hub = TelemetryHub()
+        self.tlog_path = tlog_path
+        self.tap: MavlinkTap | None = None
         self._mavsdk: Any = None
         self._system: Any = None
         self._plugins: dict[str, Any] = {}
@@ -230,10 +237,22 @@ class MavsdkVehicle:
         from mavsdk.asyncio.plugins.action import ActionAsync
         from mavsdk.asyncio.plugins.geofence import GeofenceAsync
         from mavsdk.asyncio.plugins.mavlink_direct import MavlinkDirectAsync
+        from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
         from mavsdk.asyncio.plugins.offboard import OffboardAsync
+        from mavsdk.asyncio.plugins.param import ParamAsync
         from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 
         route_mavsdk_log()
+        if self.tlog_path is not None and self.tap is None:
+            if tappable(url):
+                try:
+                    self.tap = MavlinkTap(url, self.tlog_path)
+                except (OSError, ValueError) as exc:
+                    raise VehicleError(f"tap({url})", str(exc)) from exc
+            else:
+                log.warning("%s: not a UDP URL; no %s is written", url, self.tlog_path.name)
+        if self.tap is not None:
+            url = self.tap.gcs_url
         config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
         self._mavsdk = Mavsdk(config)
         try:
@@ -250,6 +269,8 @@ class MavsdkVehicle:
             "offboard": OffboardAsync(system),
             "geofence": GeofenceAsync(system),
             "mavlink_direct": MavlinkDirectAsync(system),
+            "param": ParamAsync(system),
+            "mission_raw": MissionRawAsync(system),
         }
         self.hub.update(connected=True)
 
@@ -259,6 +280,9 @@ class MavsdkVehicle:
             with contextlib.suppress(Exception):
                 self._mavsdk.destroy()
             self._mavsdk = None
+        if self.tap is not None:
+            await asyncio.to_thread(self.tap.close)
+            self.tap = None
 
     # -- telemetry ---------------------------------------------------------------------------
 
@@ -398,6 +422,47 @@ class MavsdkVehicle:
         await self._call("upload_geofence",
                          self._plugins["geofence"].upload_geofence(GeofenceData([poly], [])))
         return True
+
+    async def read_params(self, specs: Sequence[tuple[str, str]]) -> dict[str, float | None]:
+        """Each (name, "int" | "float") through MAVSDK's param plugin, in PX4's declared type
+        first and the other if the vehicle says WRONG_TYPE; None for a parameter the vehicle
+        does not answer (another firmware version)."""
+        param = self._plugins["param"]
+        out: dict[str, float | None] = {}
+        for name, kind in specs:
+            getters = ((param.get_param_int, param.get_param_float) if kind == "int"
+                       else (param.get_param_float, param.get_param_int))
+            out[name] = None
+            for getter in getters:
+                try:
+                    out[name] = float(await self._call(f"get_param({name})", getter(name)))
+                    break
+                except VehicleError as exc:
+                    if "WRONG_TYPE" not in exc.result:
+                        log.warning("parameter %s not read: %s", name, exc.result)
+                        break
+        return out
+
+    async def download_geofence(self) -> list[list[tuple[float, float]]]:
+        """The polygons of the fence on the vehicle (MAVLink mission protocol, type FENCE),
+        each as [(lat_deg, lon_deg)]; circles are returned as their centre only. [] when no
+        fence is on board."""
+        items = await self._call("download_geofence",
+                                 self._plugins["mission_raw"].download_geofence())
+        polygons: list[list[tuple[float, float]]] = []
+        current: list[tuple[float, float]] = []
+        for it in items:
+            lat, lon = it.x / 1e7, it.y / 1e7
+            if it.command in (5001, 5002):  # polygon vertex, inclusion / exclusion
+                current.append((lat, lon))
+                if len(current) >= max(int(it.param1), 1):
+                    polygons.append(current)
+                    current = []
+            elif it.command in (5003, 5004):  # circle
+                polygons.append([(lat, lon)])
+        if current:
+            polygons.append(current)
+        return polygons
 
     async def arm(self) -> None:
         await self._call("arm", self._plugins["action"].arm())

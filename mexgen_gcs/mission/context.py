@@ -105,6 +105,9 @@ class MissionContext:
         self.last_plan: Plan | None = None
         # for views
         self.events: collections.deque[str] = collections.deque(maxlen=200)
+        self.standing_warnings: dict[str, str] = {}
+        """Warnings that hold for the whole flight (no geofence on the vehicle), by kind: the
+        UI shows them beside the live ones."""
         self.track: collections.deque[tuple[float, float]] = collections.deque(maxlen=600)
         self.det_times: dict[str, collections.deque[float]] = {
             t: collections.deque(maxlen=500) for t in core.tag_ids}
@@ -127,6 +130,14 @@ class MissionContext:
         self.events.append(f"{t - self.t_start:7.1f}s {text}")
         log.log(level, text)
         self.log.write("event" if level < logging.ERROR else "error", t=t, kind=kind, **fields)
+
+    def warn(self, kind: str, text: str, *, standing: str | None = None, **fields: Any) -> None:
+        """A warning the operator must see: a `warning` record, an event (for the report), and
+        with `standing` a line in the UI's warnings for the rest of the flight."""
+        self.log.write("warning", t=self.clock.now(), kind=kind, text=text, **fields)
+        self.event(kind, level=logging.WARNING, warning=text, **fields)
+        if standing is not None:
+            self.standing_warnings[kind] = standing
 
     def count(self, key: str, n: int = 1) -> int:
         self.counters[key] += n

@@ -36,6 +36,7 @@ from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
 from mexgen_gcs.errors import ConfigError, LogFormatError, MexgenError
 from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
+from mexgen_gcs.io.mavlink_tap import TLOG_FILE
 from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
 from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
 from mexgen_gcs.io.vehicle import MavsdkVehicle
@@ -135,7 +136,7 @@ async def fly_mission(
     with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
                          clock=clock.now) as flight_log:
         async with RadioReceiver(radio_url, policy) as receiver:
-            vehicle = MavsdkVehicle()
+            vehicle = MavsdkVehicle(tlog_path=log_dir / TLOG_FILE)
             truth = TagPositions(truth_path) if truth_path is not None else None
             controller = MissionController(
                 mission, vehicle, receiver, clock, core, flight_log, method=method,

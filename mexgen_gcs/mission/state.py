@@ -53,6 +53,13 @@ class EndReason(enum.StrEnum):
     HOME_TOO_FAR_FROM_AREA = "home_too_far_from_area"
     NO_RADIO = "no_radio"
     VEHICLE_NOT_READY = "vehicle_not_ready"
+    # before arming, for the vehicle's set-up (exit 2, like bad input)
+    VEHICLE_PARAMS_UNSAFE = "vehicle_params_unsafe"
+    """A PX4 parameter leaves the vehicle unsafe for this mission (config.px4_params)."""
+    GEOFENCE_REFUSED = "geofence_refused"
+    """The vehicle did not take the geofence and safety.require_geofence is true."""
+    GEOFENCE_ON_VEHICLE = "geofence_on_vehicle"
+    """Another fence is on the vehicle and safety.replace_existing_geofence is false."""
     # failures
     VEHICLE_ERROR = "vehicle_error"
     """A vehicle command or connection failed (the error is in the result record)."""
@@ -61,6 +68,9 @@ class EndReason(enum.StrEnum):
 
 
 SUCCESS = frozenset({EndReason.ALL_LOCALISED, EndReason.FOLLOW_COMPLETE})
+SETUP_REFUSED = frozenset({EndReason.VEHICLE_PARAMS_UNSAFE, EndReason.GEOFENCE_REFUSED,
+                           EndReason.GEOFENCE_ON_VEHICLE})
+"""Refusals before arming that the operator fixes on the vehicle or in the mission: exit 2."""
 
 
 class ReturnAction(enum.StrEnum):

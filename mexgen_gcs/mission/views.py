@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mexgen_gcs.io.snapshot import MissionSnapshot, TagView
-from mexgen_gcs.mission.state import SUCCESS, MissionResult
+from mexgen_gcs.mission.state import SETUP_REFUSED, SUCCESS, MissionResult
 
 if TYPE_CHECKING:
     from mexgen_gcs.mission.context import MissionContext
@@ -69,6 +69,7 @@ def build_snapshot(c: MissionContext) -> MissionSnapshot:
         warnings.append(f"FLIGHT LOG: {c.log.lost} RECORDS LOST")
     if len(c.track) and c.area.distance_outside_m(np.array(c.track[-1])) > 0:
         warnings.append("OUTSIDE SEARCH AREA")
+    warnings.extend(c.standing_warnings.values())
     stats = c.receiver.stats()
     return MissionSnapshot(
         t=t, elapsed_s=t - c.t_start, state=c.state.value,
@@ -114,7 +115,8 @@ def build_result(c: MissionContext) -> MissionResult:
     counters.update({f"sent_{k}": v for k, v in commands["sent"].items()})
     counters.update({f"withheld_{k}": v for k, v in commands["withheld"].items()})
     return MissionResult(
-        end_reason=str(reason), exit_code=0 if ok else 1, localised=localised,
+        end_reason=str(reason), exit_code=0 if ok else 2 if reason in SETUP_REFUSED else 1,
+        localised=localised,
         unresolved=unresolved,
         duration_s=c.clock.now() - c.t_start,
         rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events),

@@ -13,7 +13,7 @@ import os
 import sys
 import time
 
-from mexgen_gcs.config import load_mission
+from mexgen_gcs.config import Mission, load_mission
 from mexgen_gcs.errors import ConfigError, MexgenError
 from mexgen_gcs.io.clock import VehicleClock
 from mexgen_gcs.mission.controller import MissionResult
@@ -48,12 +48,21 @@ def _setup_logging() -> None:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
 
+def _accept_params(mission: Mission, args: argparse.Namespace) -> Mission:
+    """--accept-unsafe-params added to safety.accept_px4_params (so the log says so too)."""
+    extra = getattr(args, "accept_unsafe_params", None)
+    if not extra:
+        return mission
+    names = sorted(set(mission.safety.accept_px4_params) | set(extra))
+    return apply_overrides(mission, {"safety.accept_px4_params": names})
+
+
 def cmd_sitl(args: argparse.Namespace) -> int:
     _setup_logging()
     try:
         mission = load_mission(args.mission)
         overrides = {"sim.seed": args.seed} if getattr(args, "seed", None) is not None else None
-        mission = apply_overrides(mission, overrides)
+        mission = _accept_params(apply_overrides(mission, overrides), args)
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         return 2
@@ -96,6 +105,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
         mission = load_mission(args.mission)
         if getattr(args, "method", None):
             mission = apply_overrides(mission, {"planner.method": args.method})
+        mission = _accept_params(mission, args)
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         return 2

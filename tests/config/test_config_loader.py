@@ -186,7 +186,7 @@ BAD_CASES = [
      "sim.tags[0].speed_m_s", ["[min, max]", "found [6, 5]"]),
     ("both_areas", "area:                          # exactly one",
      "area:\n  polygon_deg: [[1.0, 2.0], [1.0, 2.1], [1.1, 2.0]]\n  #", "area",
-     ["expected exactly one of rectangle_m or polygon_deg; found both"]),
+     ["expected exactly one of rectangle_m, polygon_deg or from; found both"]),
 ]
 
 

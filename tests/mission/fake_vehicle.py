@@ -22,7 +22,7 @@ import asyncio
 import math
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -33,6 +33,7 @@ from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.radio_udp import RadioEvent, ReceiverStats
 from mexgen_gcs.io.vehicle import TelemetryHub
 from mexgen_gcs.io.wire import Detection, Heartbeat
+from sim.params import SPECS
 
 TICK_S = 0.02
 ACCEL_M_S2 = 3.0
@@ -65,6 +66,11 @@ class FakeVehicle:
     fail: dict[str, int] = field(default_factory=dict)
     fail_with: dict[str, BaseException] = field(default_factory=dict)
     send_time: bool = True
+    params: dict[str, float] = field(default_factory=lambda: {
+        s.name: s.default for s in SPECS})
+    """The vehicle's parameters (PX4 SITL's defaults, as the simulator serves them)."""
+    existing_fence: list[tuple[float, float]] | None = None
+    """A fence another station put on the vehicle before the mission."""
 
     def __post_init__(self) -> None:
         self.hub = TelemetryHub()
@@ -145,6 +151,14 @@ class FakeVehicle:
         if self.fail.get(name, 0) > 0:
             self.fail[name] -= 1
             raise VehicleError(name, "DENIED (scripted)")
+
+    async def read_params(self, specs: Sequence[tuple[str, str]]) -> dict[str, float | None]:
+        self._record("read_params", len(specs))
+        return {name: self.params.get(name) for name, _ in specs}
+
+    async def download_geofence(self) -> list[list[tuple[float, float]]]:
+        self._record("download_geofence")
+        return [] if self.existing_fence is None else [list(self.existing_fence)]
 
     async def upload_geofence(self, polygon_latlon_deg: list[tuple[float, float]]) -> bool:
         self._record("upload_geofence", len(polygon_latlon_deg))

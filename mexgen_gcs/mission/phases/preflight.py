@@ -1,5 +1,8 @@
-"""Preflight: connect, wait for health, take the clock from the vehicle, check home, wait for
-the radio, upload the geofence. Safe action: nothing is armed; the mission ends on the ground.
+"""Preflight: connect, wait for health, check the vehicle's PX4 safety parameters, take the
+clock from the vehicle, check home, wait for the radio, look at the fence already on the
+vehicle, upload ours. Safe action: nothing is armed; the mission ends on the ground. Refusals
+for the vehicle's set-up (unsafe parameters, a fence the vehicle refused when one is required,
+another station's fence we may not replace) end with exit 2 and a message on stderr.
 
 Frames: horizontal ENU metres about the mission home; the vehicle's home (HOME_POSITION) is
 compared with the mission's horizontally and, when ``home.alt_m`` is given, in altitude AMSL.
@@ -16,6 +19,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mexgen_gcs.config.px4_params import PARAMS as PX4_PARAMS
+from mexgen_gcs.config.px4_params import evaluate as evaluate_params
 from mexgen_gcs.errors import VehicleError
 from mexgen_gcs.io.vehicle import wait_until
 from mexgen_gcs.mission.context import MissionContext
@@ -30,11 +35,17 @@ def _refuse(ctx: MissionContext, reason: EndReason, **fields: object) -> Mission
     return MissionEnd(reason, ReturnAction.NONE)
 
 
-def warn_operator(ctx: MissionContext, kind: str, text: str, **fields: object) -> None:
-    """A warning the operator must see: an event and a line on stderr (if it still works)."""
-    ctx.event(kind, level=logging.WARNING, warning=text, **fields)
+def warn_operator(ctx: MissionContext, kind: str, text: str, *, standing: str | None = None,
+                  **fields: object) -> None:
+    """A warning the operator must see: a `warning` record and event, a line on stderr (if it
+    still works) and, with `standing`, a line in the UI's warnings for the rest of the flight."""
+    ctx.warn(kind, text, standing=standing, **fields)
+    _say(f"WARNING: {text}")
+
+
+def _say(text: str) -> None:
     with contextlib.suppress(OSError, ValueError):
-        print(f"WARNING: {text}", file=sys.stderr, flush=True)
+        print(text, file=sys.stderr, flush=True)
 
 
 async def run(ctx: MissionContext, start_telemetry: Callable[[], None]) -> None:
@@ -65,10 +76,12 @@ async def _checks(ctx: MissionContext, start_telemetry: Callable[[], None]) -> N
     tel = ctx.vehicle.hub.latest
     ctx.event("vehicle_ready", lat=tel.lat_deg, lon=tel.lon_deg, mode=tel.flight_mode,
               home_alt_amsl_m=tel.home_abs_alt_m)
+    await check_params(ctx)
     await sync_clock(ctx)
     check_home(ctx)
     await wait_for_radio(ctx)
     if ctx.mission.safety.upload_geofence:
+        await check_existing_fence(ctx)
         await upload_geofence(ctx)
     if ctx.stop is not None:
         raise _refuse(ctx, ctx.stop.reason, armed=False)
@@ -139,8 +152,64 @@ async def wait_for_radio(ctx: MissionContext) -> None:
     ctx.event("radio_ok")
 
 
+async def check_params(ctx: MissionContext) -> None:
+    """Read the PX4 parameters that decide what the vehicle does when this GCS fails, judge
+    them against the mission (config.px4_params) and refuse an unsafe set (exit 2) unless
+    accepted (safety.accept_px4_params, --accept-unsafe-params)."""
+    try:
+        values = await ctx.vehicle.read_params([(d.name, d.kind) for d in PX4_PARAMS])
+    except VehicleError as exc:
+        warn_operator(ctx, "vehicle_params_not_read", f"the vehicle's parameters could not be "
+                      f"read ({exc}); its failsafes are unchecked", error=str(exc))
+        return
+    report = evaluate_params(ctx.mission, values)
+    ctx.event("vehicle_params", values={k: v for k, v in values.items() if v is not None},
+              refused=[r.name for r in report.refused],
+              accepted=[r.name for r in report.rows if r.accepted])
+    for row in report.warnings:
+        warn_operator(ctx, "vehicle_param", f"PX4 {row.name} = {row.shown_value()}: "
+                      f"{row.problem}{' (accepted)' if row.accepted else ''}", param=row.name)
+    if report.refused:
+        _say(report.table())
+        for row in report.refused:
+            _say(f"REFUSED: PX4 {row.name} = {row.shown_value()}: {row.problem}")
+        names = [r.name for r in report.refused]
+        _say(f"Set them on the vehicle, or accept them knowingly with safety.accept_px4_params "
+             f"or --accept-unsafe-params {','.join(names)}; nothing was armed.")
+        raise _refuse(ctx, EndReason.VEHICLE_PARAMS_UNSAFE, params=names,
+                      problems=[f"{r.name} = {r.shown_value()}: {r.problem}"
+                                for r in report.refused])
+
+
+async def check_existing_fence(ctx: MissionContext) -> None:
+    """Another station (the pilot's QGroundControl) may have put a fence on the vehicle; ours
+    replaces it. Show it, and refuse (exit 2) unless safety.replace_existing_geofence."""
+    try:
+        shapes = await ctx.vehicle.download_geofence()
+    except VehicleError as exc:
+        warn_operator(ctx, "geofence_not_read", f"the fence on the vehicle could not be read "
+                      f"({exc}); ours will replace whatever is there", error=str(exc))
+        return
+    if not shapes:
+        return
+    shown = [[(round(lat, 7), round(lon, 7)) for lat, lon in shape] for shape in shapes]
+    text = (f"the vehicle already holds a geofence of {len(shapes)} shape(s) (first: "
+            + "; ".join(f"{lat:.6f}, {lon:.6f}" for lat, lon in shown[0][:6])
+            + (" ..." if len(shown[0]) > 6 else "") + ")")
+    if ctx.mission.safety.replace_existing_geofence:
+        warn_operator(ctx, "geofence_replaced", f"{text}; replacing it with ours "
+                      "(safety.replace_existing_geofence)", shapes=shown)
+        return
+    _say(f"REFUSED: {text}. It may be the pilot's: agree whose fence flies, then set "
+         "safety.replace_existing_geofence: true (ours replaces it) or clear it; nothing was "
+         "armed.")
+    raise _refuse(ctx, EndReason.GEOFENCE_ON_VEHICLE, shapes=shown)
+
+
 async def upload_geofence(ctx: MissionContext) -> None:
-    """The convex hull of the area and both homes, pushed out by geofence_margin_m."""
+    """The convex hull of the area and both homes, pushed out by geofence_margin_m. A refusal
+    ends the mission before arming (exit 2) with safety.require_geofence, else it is a standing
+    warning."""
     tel = ctx.vehicle.hub.latest
     e, n, _ = ctx.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg)
     homes = np.array([[0.0, 0.0], [float(e), float(n)]])
@@ -152,5 +221,10 @@ async def upload_geofence(ctx: MissionContext) -> None:
         ctx.event("geofence_uploaded", vertices=len(fence), margin_m=margin,
                   fence_en_m=np.round(fence, 1))
     except VehicleError as exc:
+        if ctx.mission.safety.require_geofence:
+            _say(f"REFUSED: the vehicle did not take the geofence ({exc}) and "
+                 "safety.require_geofence is true; nothing was armed.")
+            raise _refuse(ctx, EndReason.GEOFENCE_REFUSED, error=str(exc)) from None
         warn_operator(ctx, "geofence_not_accepted", f"the vehicle did not take the geofence "
-                      f"({exc}); flying without it", error=str(exc))
+                      f"({exc}); flying without it", standing="NO GEOFENCE ON THE VEHICLE",
+                      error=str(exc))
