@@ -82,6 +82,7 @@ def test_the_commands_table_lists_every_subcommand() -> None:
     assert any(cmd.startswith("python -m sim ") for cmd in _table_commands())
 
 
+@pytest.mark.e2e  # starts `python -m sim --help` and the collections as processes
 def test_the_readmes_quick_commands_run_as_written(capsys: pytest.CaptureFixture[str]) -> None:
     """`mexgen-gcs check ...` as given, `--help` of every command in the table, and the
     collection of every pytest command. The subprocesses run at once, so the test takes about

@@ -4,14 +4,16 @@ with a message naming the file, what was found and what is expected (exit 2 from
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from mexgen_gcs import cli
 from mexgen_gcs.config import load_mission
 from mexgen_gcs.config.area_files import (
     AreaFileError,
@@ -25,8 +27,11 @@ HOME = (-34.9212, 138.6011)
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "mexgen_gcs", *args], capture_output=True,
-                          text=True, timeout=120, cwd=REPO)
+    """The command line in this process (the fast suite starts no Python process)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.chdir(REPO), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = cli.main(list(args))
+    return subprocess.CompletedProcess(list(args), code, out.getvalue(), err.getvalue())
 
 
 def mission_from(tmp_path: Path, area_file: str) -> Path:
