@@ -153,6 +153,9 @@ def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DE
         "PX4_SIM_MODEL": "sihsim_quadx", "PX4_SIM_SPEED_FACTOR": f"{speed_factor:g}",
         "PX4_PARAM_SIH_LOC_LAT0": f"{home[0]:.7f}", "PX4_PARAM_SIH_LOC_LON0": f"{home[1]:.7f}",
         "PX4_PARAM_SIH_LOC_H0": f"{home[2]:.2f}",
+        # the SIH airframe keeps the firmware's NAV_DLL_ACT 0 (data-link loss ignored), which
+        # the preflight check refuses; set it as the field guide asks (2: Return)
+        "PX4_PARAM_NAV_DLL_ACT": "2",
     } | {f"PX4_PARAM_{k}": f"{v:g}" for k, v in (params or {}).items()}
     proc: subprocess.Popen[bytes] | None = None
     try:
