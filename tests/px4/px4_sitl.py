@@ -38,6 +38,8 @@ from tests.sim.sim_helpers import SimProcess, start_radios_only
 DEFAULT_BUILD = Path("~/PX4-Autopilot/build/px4_sitl_default/bin/px4").expanduser()
 READY_TEXT = "Ready for takeoff"
 READY_TIMEOUT_S = 60.0
+#: Set through PX4's shell once it is ready, unless the test gives its own value.
+LATE_PARAMS: dict[str, float] = {"NAV_DLL_ACT": 2.0}
 STOP_TIMEOUT_S = 15.0
 #: PX4's own defaults for SIH (SIH_LOC_LAT0 / LON0 / H0): Zurich.
 SIH_DEFAULT_HOME = (47.397742, 8.545594, 489.4)
@@ -153,9 +155,6 @@ def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DE
         "PX4_SIM_MODEL": "sihsim_quadx", "PX4_SIM_SPEED_FACTOR": f"{speed_factor:g}",
         "PX4_PARAM_SIH_LOC_LAT0": f"{home[0]:.7f}", "PX4_PARAM_SIH_LOC_LON0": f"{home[1]:.7f}",
         "PX4_PARAM_SIH_LOC_H0": f"{home[2]:.2f}",
-        # the SIH airframe keeps the firmware's NAV_DLL_ACT 0 (data-link loss ignored), which
-        # the preflight check refuses; set it as the field guide asks (2: Return)
-        "PX4_PARAM_NAV_DLL_ACT": "2",
     } | {f"PX4_PARAM_{k}": f"{v:g}" for k, v in (params or {}).items()}
     proc: subprocess.Popen[bytes] | None = None
     try:
@@ -170,6 +169,14 @@ def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DE
             if proc.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError(f"PX4 did not become ready:\n{px4.log_text()[-3000:]}")
             time.sleep(0.1)
+        # The SIH airframe keeps the firmware's NAV_DLL_ACT 0 (data-link loss ignored), which
+        # the preflight check refuses: set it as the field guide asks (2: Return), after
+        # "Ready for takeoff" (with it set PX4 is not ready until a ground station connects).
+        for name, value in LATE_PARAMS.items():
+            if name not in (params or {}):
+                subprocess.run([str(exe.with_name("px4-param")), "--instance", str(i), "set",
+                                name, f"{value:g}"], cwd=workdir, capture_output=True,
+                               timeout=10, check=True)
         yield px4
     finally:
         if proc is not None:
