@@ -38,8 +38,6 @@ from tests.sim.sim_helpers import SimProcess, start_radios_only
 DEFAULT_BUILD = Path("~/PX4-Autopilot/build/px4_sitl_default/bin/px4").expanduser()
 READY_TEXT = "Ready for takeoff"
 READY_TIMEOUT_S = 60.0
-#: Set through PX4's shell once it is ready, unless the test gives its own value.
-LATE_PARAMS: dict[str, float] = {"NAV_DLL_ACT": 2.0}
 STOP_TIMEOUT_S = 15.0
 #: PX4's own defaults for SIH (SIH_LOC_LAT0 / LON0 / H0): Zurich.
 SIH_DEFAULT_HOME = (47.397742, 8.545594, 489.4)
@@ -136,6 +134,7 @@ def _stop(proc: subprocess.Popen[bytes]) -> None:
 @contextlib.contextmanager
 def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DEFAULT_HOME,
             *, instance: int | None = None, params: dict[str, float] | None = None,
+            late_params: dict[str, float] | None = None,
             binary: Path | None = None) -> Iterator[Px4Sitl]:
     """Start PX4 SITL + SIH headless; yield it ready for takeoff; always stop and clean up.
 
@@ -169,14 +168,12 @@ def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DE
             if proc.poll() is not None or time.monotonic() > deadline:
                 raise RuntimeError(f"PX4 did not become ready:\n{px4.log_text()[-3000:]}")
             time.sleep(0.1)
-        # The SIH airframe keeps the firmware's NAV_DLL_ACT 0 (data-link loss ignored), which
-        # the preflight check refuses: set it as the field guide asks (2: Return), after
-        # "Ready for takeoff" (with it set PX4 is not ready until a ground station connects).
-        for name, value in LATE_PARAMS.items():
-            if name not in (params or {}):
-                subprocess.run([str(exe.with_name("px4-param")), "--instance", str(i), "set",
-                                name, f"{value:g}"], cwd=workdir, capture_output=True,
-                               timeout=10, check=True)
+        # ``late_params`` are set through PX4's shell once it is ready: some (NAV_DLL_ACT 2)
+        # keep PX4 from ever saying "Ready for takeoff" until a ground station connects.
+        for name, value in (late_params or {}).items():
+            subprocess.run([str(exe.with_name("px4-param")), "--instance", str(i), "set", name,
+                            f"{value:g}"], cwd=workdir, capture_output=True, timeout=10,
+                           check=True)
         yield px4
     finally:
         if proc is not None:

@@ -24,7 +24,8 @@ def check(url: str) -> subprocess.CompletedProcess[str]:
 
 
 def test_check_connect_prints_px4s_parameters(px4_factory: Px4Factory) -> None:
-    px4 = px4_factory(speed_factor=1.0, home=HOME)  # NAV_DLL_ACT 2, as the field guide asks
+    # NAV_DLL_ACT 2 (Return), as the field guide asks; the SIH airframe keeps the firmware's 0
+    px4 = px4_factory(speed_factor=1.0, home=HOME, late_params={"NAV_DLL_ACT": 2})
     proc = check(px4.mavsdk_url)
     print(proc.stdout)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
