@@ -110,7 +110,7 @@ def test_a_sitl_flights_tlog_reads_with_pymavlink(tmp_path: Path) -> None:
     link = json.loads(report.summary_json.read_text())["vehicle_link"]
     modes = [m for _, m, _ in link["modes"]]
     assert modes.index("TAKEOFF") < modes.index("OFFBOARD") < modes.index("RTL")
-    assert 0 <= len(positions) - link["positions"] <= 5  # those before its first HEARTBEAT
+    assert link["positions"] == len(positions)
 
 
 def test_a_torn_tlog_is_read_as_far_as_it_goes(tmp_path: Path) -> None:
