@@ -48,9 +48,8 @@ SPECS: tuple[ParamSpec, ...] = (
               "3 land", "int"),
     ParamSpec("NAV_DLL_ACT", 2.0, 0.0, 6.0,
               "data link (GCS heartbeat) loss action: 0 disabled, 1 hold, 2 return, 3 land, "
-              "5 terminate, 6 disarm (PX4's Gazebo SITL airframes set 2, as served here; the "
-              "firmware default, which the SIH airframe keeps, is 0); reported, not simulated",
-              "int"),
+              "5 terminate, 6 disarm (PX4's Gazebo SITL airframes set 2; PX4 SIH and the "
+              "firmware default are 0); reported, not simulated", "int"),
     ParamSpec("COM_DL_LOSS_T", 10.0, 5.0, 300.0, "data link loss timeout, s", "int"),
     ParamSpec("COM_DISARM_PRFLT", 10.0, -1.0, 20.0,
               "auto-disarm if no takeoff within this after arming, s (wall); <= 0 off"),

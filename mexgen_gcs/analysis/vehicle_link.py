@@ -58,8 +58,8 @@ def _short(enum_name: str, prefix: str) -> str:
 
 def read_vehicle_link(path: str | os.PathLike[str], autopilot_sysid: int | None = None
                       ) -> VehicleLink:
-    """Summarise a tlog. The autopilot is `autopilot_sysid`, else the first system whose
-    HEARTBEAT is not a GCS."""
+    """Summarise a tlog. The autopilot is `autopilot_sysid`, else the first system that sends
+    a non-GCS HEARTBEAT or a GLOBAL_POSITION_INT."""
     link = VehicleLink(str(path))
     reader = mavutil.mavlink_connection(str(Path(path)), dialect="common")
     t0: float | None = None
@@ -98,7 +98,8 @@ def read_vehicle_link(path: str | os.PathLike[str], autopilot_sysid: int | None 
                 if (mode, armed) != last_mode:
                     link.modes.append((round(t - t0, 3), mode, armed))
                     last_mode = (mode, armed)
-            elif kind == "GLOBAL_POSITION_INT" and src == autopilot_sysid:
+            elif kind == "GLOBAL_POSITION_INT" and src == (autopilot_sysid or src):
+                autopilot_sysid = src  # only a vehicle sends its position
                 link.positions += 1
                 alt = msg.relative_alt / 1000.0
                 link.max_rel_alt_m = alt if link.max_rel_alt_m is None else max(

@@ -100,8 +100,7 @@ class MavlinkTap:
         if scheme == "udpout":
             self._vehicle_addr = _host_port(rest, vehicle_url)
             self._vehicle_sock.bind(("0.0.0.0", 0))
-        else:
-            self._vehicle_sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        else:  # no SO_REUSEADDR: a port another program holds is an error, not a split link
             self._vehicle_sock.bind(_host_port(rest, vehicle_url))
         self._gcs_sock.bind(("127.0.0.1", 0))
         self._mavsdk_addr: tuple[str, int] | None = None

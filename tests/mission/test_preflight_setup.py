@@ -94,3 +94,14 @@ async def test_a_fence_on_the_vehicle_is_replaced_when_the_mission_says_so(tmp_p
     (warning,) = [w for w in _warnings(f) if w["kind"] == "geofence_replaced"]
     assert warning["shapes"] == [[list(p) for p in PILOT_FENCE]]
     assert "upload_geofence" in _names(fake) and fake.fence != PILOT_FENCE
+
+
+async def test_this_missions_own_fence_from_an_earlier_flight_is_replaced_silently(tmp_path):
+    """A second flight of the same mission finds the fence the first one uploaded: no refusal."""
+    first = _vehicle()
+    await fly(tmp_path / "first", first, requests=(("offboard", 3.0, "rtl"),))
+    assert first.fence is not None
+    again = _vehicle(existing_fence=first.fence)
+    f = await fly(tmp_path / "again", again, requests=(("offboard", 3.0, "rtl"),))
+    assert f.events("geofence_on_vehicle_is_ours") and "arm" in _names(again)
+    assert not [w for w in _warnings(f) if w["kind"].startswith("geofence")]

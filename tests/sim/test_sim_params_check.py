@@ -106,3 +106,28 @@ def test_check_connect_without_a_vehicle_fails() -> None:
                      "--connect-timeout", "2")
     assert proc.returncode == 1
     assert "no autopilot heard" in proc.stderr
+
+
+def test_a_flight_refuses_unsafe_params_before_arming(tmp_path: Path,
+                                                      capfd: pytest.CaptureFixture[str]) -> None:
+    from mexgen_gcs.io.flightlog import read_flight_log
+    from mexgen_gcs.mission.run import SitlPorts, run_sitl
+
+    result = run_sitl(DEMO_MISSION, seed=3, speedup=5.0, ports=SitlPorts.free(),
+                      log_dir=tmp_path, sim_args=["--param", "GF_ACTION=1"])
+    assert result.end_reason == "vehicle_params_unsafe" and result.exit_code == 2
+    assert "REFUSED: PX4 GF_ACTION = 1 Warning" in capfd.readouterr().err
+    kinds = [r.get("kind") for r in read_flight_log(result.log_dir).records]
+    assert "vehicle_params" in kinds and "armed" not in kinds
+
+
+def test_accept_flag_reaches_the_mission() -> None:
+    import argparse
+
+    from mexgen_gcs.ui.commands import _accept_params
+
+    mission = load_mission(DEMO_MISSION)
+    args = argparse.Namespace(accept_unsafe_params=frozenset({"GF_ACTION", "NAV_DLL_ACT"}))
+    assert _accept_params(mission, args).safety.accept_px4_params == ("GF_ACTION",
+                                                                      "NAV_DLL_ACT")
+    assert _accept_params(mission, argparse.Namespace()) is mission

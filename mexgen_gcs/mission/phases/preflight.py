@@ -193,6 +193,9 @@ async def check_existing_fence(ctx: MissionContext) -> None:
     if not shapes:
         return
     shown = [[(round(lat, 7), round(lon, 7)) for lat, lon in shape] for shape in shapes]
+    if len(shapes) == 1 and _same_fence(ctx, shapes[0], our_fence_en_m(ctx)):
+        ctx.event("geofence_on_vehicle_is_ours", vertices=len(shapes[0]))
+        return  # this mission's own fence from an earlier flight: replaced without asking
     text = (f"the vehicle already holds a geofence of {len(shapes)} shape(s) (first: "
             + "; ".join(f"{lat:.6f}, {lon:.6f}" for lat, lon in shown[0][:6])
             + (" ..." if len(shown[0]) > 6 else "") + ")")
@@ -210,11 +213,8 @@ async def upload_geofence(ctx: MissionContext) -> None:
     """The convex hull of the area and both homes, pushed out by geofence_margin_m. A refusal
     ends the mission before arming (exit 2) with safety.require_geofence, else it is a standing
     warning."""
-    tel = ctx.vehicle.hub.latest
-    e, n, _ = ctx.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg)
-    homes = np.array([[0.0, 0.0], [float(e), float(n)]])
     margin = ctx.mission.safety.geofence_margin_m
-    fence = ctx.area.fence_polygon(margin, homes)
+    fence = our_fence_en_m(ctx)
     lat, lon, _ = ctx.frame.to_geodetic(fence[:, 0], fence[:, 1])
     try:
         await ctx.commander.upload_geofence(list(zip(lat.tolist(), lon.tolist(), strict=True)))
@@ -228,3 +228,32 @@ async def upload_geofence(ctx: MissionContext) -> None:
         warn_operator(ctx, "geofence_not_accepted", f"the vehicle did not take the geofence "
                       f"({exc}); flying without it", standing="NO GEOFENCE ON THE VEHICLE",
                       error=str(exc))
+
+
+SAME_FENCE_M = 25.0
+"""A fence on the vehicle whose vertices are all this close to ours is this mission's own."""
+
+
+def our_fence_en_m(ctx: MissionContext) -> np.ndarray:
+    """The fence this mission uploads, (K, 2) ENU metres: the convex hull of the area and both
+    homes, pushed out by geofence_margin_m."""
+    tel = ctx.vehicle.hub.latest
+    e, n, _ = ctx.frame.to_enu(tel.home_lat_deg, tel.home_lon_deg)
+    homes = np.array([[0.0, 0.0], [float(e), float(n)]])
+    return ctx.area.fence_polygon(ctx.mission.safety.geofence_margin_m, homes)
+
+
+def _same_fence(ctx: MissionContext, shape: list[tuple[float, float]], ours: np.ndarray
+                ) -> bool:
+    """Same vertex count and every vertex of `shape` within SAME_FENCE_M of ours, in order
+    (from any starting vertex): the fence an earlier flight of this mission uploaded."""
+    if len(shape) != len(ours):
+        return False
+    lat = np.array([p[0] for p in shape])
+    lon = np.array([p[1] for p in shape])
+    e, n, _ = ctx.frame.to_enu(lat, lon)
+    theirs = np.column_stack([e, n])
+    for shift in range(len(ours)):
+        if np.all(np.hypot(*(np.roll(theirs, shift, axis=0) - ours).T) <= SAME_FENCE_M):
+            return True
+    return False
