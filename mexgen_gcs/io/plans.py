@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.core.mission_core import PlanRequest
 from mexgen_gcs.core.planner import Planner, PlanResult
 from mexgen_gcs.io.records import Plan
@@ -25,7 +26,7 @@ from mexgen_gcs.io.records import Plan
 class MissionPlanner:
     """One Planner per method, built lazily for a mission. Not thread-safe (one thread)."""
 
-    def __init__(self, mission: Any) -> None:
+    def __init__(self, mission: Mission) -> None:
         self.mission = mission
         self.radio = mission.radio_model()
         self.area = mission.search_area()

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.core.planner import VehicleState
 from mexgen_gcs.io.clock import Clock
@@ -47,7 +48,7 @@ OFFBOARD_LOSS_GAP_S = 0.9
 class MissionContext:
     def __init__(
         self,
-        mission: Any,
+        mission: Mission,
         vehicle: Vehicle,
         receiver: Any,
         clock: Clock,

@@ -48,6 +48,7 @@ from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.core.mission_core import MissionCore
 from mexgen_gcs.errors import MexgenError
 from mexgen_gcs.io.clock import Clock
@@ -89,7 +90,7 @@ class MissionController:
 
     def __init__(
         self,
-        mission: Any,
+        mission: Mission,
         vehicle: Vehicle,
         receiver: Any,
         clock: Clock,

@@ -33,6 +33,7 @@ import numpy as np
 import yaml
 
 from mexgen_gcs.config import dump_resolved, load_mission, parse_mission
+from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.errors import ConfigError, LogFormatError, MexgenError
 from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
@@ -83,7 +84,7 @@ def free_udp_port() -> int:
     raise OSError(f"no free UDP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
 
 
-def apply_overrides(mission: Any, overrides: Mapping[str, Any] | None) -> Any:
+def apply_overrides(mission: Mission, overrides: Mapping[str, Any] | None) -> Mission:
     """A new mission with dotted-key overrides applied (``{"planner.method": "pim"}``) and
     validated by the one schema; errors name the key."""
     if not overrides:
@@ -104,7 +105,7 @@ def apply_overrides(mission: Any, overrides: Mapping[str, Any] | None) -> Any:
     return parse_mission(text, source=f"{mission.source_path or '<mission>'} + overrides")
 
 
-def make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: int) -> Path:
+def make_log_dir(base: str | os.PathLike[str], mission: Mission, method: str, seed: int) -> Path:
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%S")
     d = Path(base) / f"{stamp}-{mission.name}-{method}-s{seed}"
     n = 1
@@ -116,7 +117,7 @@ def make_log_dir(base: str | os.PathLike[str], mission: Any, method: str, seed: 
 
 
 async def fly_mission(
-    mission: Any,
+    mission: Mission,
     *,
     connect_url: str,
     radio_url: str,
@@ -335,7 +336,7 @@ def run_sitl(
     return result
 
 
-def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Any) -> None:
+def attach_truth_errors(result: MissionResult, truth_path: Path, mission: Mission) -> None:
     """Add `error_m` per localised tag from the simulator's truth at localisation time, and per
     unresolved tag from the last truth."""
     if not truth_path.exists():

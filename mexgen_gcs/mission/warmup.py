@@ -17,16 +17,16 @@ Frame: ENU metres about the mission home.
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.config.mission import Mission
 from mexgen_gcs.core.generators import METHODS
 from mexgen_gcs.core.guidance import velocity_setpoint
 from mexgen_gcs.core.planner import Planner, VehicleState
 
 
-def warm_up(mission: Any) -> float:
+def warm_up(mission: Mission) -> float:
     """Run every kernel of a flight of ``mission`` once; returns the wall seconds it took."""
     t0 = time.perf_counter()
     rng = np.random.default_rng(0)

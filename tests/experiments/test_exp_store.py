@@ -90,9 +90,9 @@ def test_progress_draws_on_a_terminal_only() -> None:
     p.update(failed=True)
     p.close()
     text = out.getvalue()
-    assert text.startswith("\r") and text.endswith("\n")
-    assert "1/4" in text and "ETA 0:00:30" in text  # 10 s a run, 3 to go
-    assert "4/4  100%  1 failed  0:00:40 elapsed  ETA 0:00:00" in text
+    assert "localise rw" in text and "1/4" in text
+    assert "4/4" in text and "100%" in text and "1 failed" in text
+    assert "0:00:40" in text  # elapsed on the given clock
     quiet = io.StringIO()
     q = Progress(2, "x", quiet)  # a StringIO is not a tty
     q.update()

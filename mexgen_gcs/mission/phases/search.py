@@ -94,6 +94,7 @@ async def filter_cadence(ctx: MissionContext) -> None:
 def check_done(ctx: MissionContext, t: float) -> None:
     m = ctx.mission
     if m.kind == "follow":
+        assert m.follow is not None  # the schema requires the section for kind follow
         if ctx.t_airborne is not None and t - ctx.t_airborne >= m.follow.duration_s:
             ctx.finish(EndReason.FOLLOW_COMPLETE)
     elif ctx.core.all_localised():
