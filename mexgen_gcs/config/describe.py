@@ -89,6 +89,10 @@ def describe(mission: Mission) -> str:
         lines.append(f"  follow     {m.follow.tag} for {m.follow.duration_s:g} s")
     sf = m.safety
     uploaded = "uploaded" if sf.upload_geofence else "not uploaded"
+    if sf.upload_geofence:
+        uploaded += (", required" if sf.require_geofence else ", optional") + (
+            ", replaces any fence on the vehicle" if sf.replace_existing_geofence else
+            ", not over another station's fence")
     lines.append(f"  safety     home after {sf.max_mission_time_s:g} s or at "
                  f"{sf.battery_rtl_percent:g}% battery; link lost after "
                  f"{sf.link_loss_timeout_s:g} s then {sf.on_link_regained}; radio silent "
@@ -96,6 +100,8 @@ def describe(mission: Mission) -> str:
                  f"outside the area and home ({uploaded}); vehicle home within "
                  f"{sf.home_max_distance_m:g} m of the area (warn beyond "
                  f"{sf.home_mismatch_warn_m:g} m from this home)")
+    if sf.accept_px4_params:
+        lines.append(f"  PX4 params unsafe values accepted: {', '.join(sf.accept_px4_params)}")
     lines += _describe_sim(m)
     return "\n".join(lines)
 
