@@ -34,6 +34,7 @@ class PilotStation:
     vehicle has flown offboard for `search_s` wall seconds, then LAND `land_after_s` later."""
 
     port: int
+    target_system: int = 1
     search_s: float = 4.0
     land_after_s: float = 4.0
     stop: threading.Event = field(default_factory=threading.Event)
@@ -72,18 +73,18 @@ class PilotStation:
                     offboard_since = offboard_since or now
                 if (self.hold_sent_mono is None and offboard_since is not None
                         and now - offboard_since >= self.search_s):
-                    self._set_mode(conn, PX4_AUTO, PX4_LOITER)
+                    self._set_mode(conn, self.target_system, PX4_AUTO, PX4_LOITER)
                     self.hold_sent_mono = now
                 if (self.hold_sent_mono is not None and self.land_sent_mono is None
                         and now - self.hold_sent_mono >= self.land_after_s):
-                    self._set_mode(conn, PX4_AUTO, PX4_LAND)
+                    self._set_mode(conn, self.target_system, PX4_AUTO, PX4_LAND)
                     self.land_sent_mono = now
         finally:
             conn.close()
 
     @staticmethod
-    def _set_mode(conn: Any, main: int, sub: int) -> None:
-        conn.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0,
+    def _set_mode(conn: Any, target_system: int, main: int, sub: int) -> None:
+        conn.mav.command_long_send(target_system, 1, M.MAV_CMD_DO_SET_MODE, 0,
                                    M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, main, sub, 0, 0, 0, 0)
 
 

@@ -120,6 +120,20 @@ class Px4Sitl:
     def alive(self) -> bool:
         return self.proc.poll() is None
 
+    def shell(self, command: str, *args: str) -> str:
+        """Run a PX4 shell command on this instance (``px4-<command>`` beside the binary)."""
+        exe = Path(self.proc.args[0]).with_name(f"px4-{command}")  # type: ignore[index]
+        proc = subprocess.run([str(exe), "--instance", str(self.instance), *args],
+                              cwd=self.workdir, capture_output=True, text=True, timeout=10,
+                              check=True)
+        return proc.stdout
+
+    def add_gcs_link(self, listen_port: int, remote_port: int) -> None:
+        """A further MAVLink link in PX4's Normal (GCS) mode: PX4 binds ``listen_port`` and
+        sends to 127.0.0.1:``remote_port`` (a second ground station, e.g. QGroundControl's)."""
+        self.shell("mavlink", "start", "-u", str(listen_port), "-o", str(remote_port),
+                   "-t", "127.0.0.1", "-r", "400000")  # no -m: Normal
+
 
 def _stop(proc: subprocess.Popen[bytes]) -> None:
     if proc.poll() is None:
@@ -171,9 +185,7 @@ def px4_sih(speed_factor: float = 4.0, home: tuple[float, float, float] = SIH_DE
         # ``late_params`` are set through PX4's shell once it is ready: some (NAV_DLL_ACT 2)
         # keep PX4 from ever saying "Ready for takeoff" until a ground station connects.
         for name, value in (late_params or {}).items():
-            subprocess.run([str(exe.with_name("px4-param")), "--instance", str(i), "set", name,
-                            f"{value:g}"], cwd=workdir, capture_output=True, timeout=10,
-                           check=True)
+            px4.shell("param", "set", name, f"{value:g}")
         yield px4
     finally:
         if proc is not None:
