@@ -37,6 +37,7 @@ from mexgen_gcs.io.clock import Clock, VehicleClock
 from mexgen_gcs.io.flightlog import FlightLogWriter
 from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
 from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
+from mexgen_gcs.io.tunnel import TunnelReceiver
 from mexgen_gcs.io.vehicle import MavsdkVehicle
 from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
 
@@ -138,10 +139,11 @@ async def fly_mission(
     flies the controller with something attached (the terminal UI); default: headless."""
     rng = np.random.default_rng(seed)
     core = build_core(mission, rng.spawn(1)[0])
-    policy = RadioPolicy.from_mission(mission, clock=clock.now)
+    policy = RadioPolicy.from_mission(mission, clock=clock.now,
+                                      clock_synced=lambda: bool(getattr(clock, "synced", True)))
     with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
                          clock=clock.now) as flight_log:
-        async with RadioReceiver(radio_url, policy) as receiver:
+        async with make_receiver(mission, radio_url, policy) as receiver:
             vehicle = MavsdkVehicle()
             truth = TagPositions(truth_path) if truth_path is not None else None
             controller = MissionController(
@@ -160,6 +162,15 @@ async def fly_mission(
                 await vehicle.close()
             result.log_dir = str(log_dir)
     return result
+
+
+def make_receiver(mission: Any, radio_url: str, policy: RadioPolicy) -> RadioReceiver:
+    """The receiver of ``receiver.format``: wire-format JSON datagrams, or MAVLink TUNNEL
+    pulse reports (TagTracker / UAV-RT), on ``radio_url``."""
+    if mission.receiver.format == "mavlink-tunnel":
+        return TunnelReceiver(radio_url, policy,
+                              calibration_db=mission.receiver.tunnel_calibration_db)
+    return RadioReceiver(radio_url, policy)
 
 
 def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
