@@ -82,8 +82,8 @@ def test_spikes_both_ways_are_not_a_jump() -> None:
     clock = ReceiverClock()
     feed(clock, heartbeats(10.0, 0.0, 50))
     m = M0 + 50
-    changes = [clock.observe(m + 10.0 + 5.0, m), clock.observe(m + 1 + 10.0 - 5.0, m + 1),
-               clock.observe(m + 2 + 10.0 + 5.0, m + 2)]
+    changes = [clock.observe(m + 10.0 + 8.0, m), clock.observe(m + 1 + 10.0 - 8.0, m + 1),
+               clock.observe(m + 2 + 10.0 + 8.0, m + 2)]
     assert changes == [None, None, None] and clock.jumps == 0
     assert abs(clock.offset_s - 10.0) < 0.02
 
