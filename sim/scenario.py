@@ -37,6 +37,8 @@ class SimOptions:
     extra_faults: tuple[Fault, ...] = field(default=())
     keep_running: bool = False
     radios: bool = True
+    radio_format: str = "wire-v1"
+    """wire-v1, or mavlink-tunnel (TagTracker's TUNNEL PulseInfo_t, sim.tunnel_radio)."""
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:
