@@ -16,7 +16,7 @@ import math
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from mexgen_gcs.io.tunnel import (
+from mexgen_gcs.io.pulseinfo import (
     CONFIRMED,
     NO_PULSE,
     TAGTRACKER_PAYLOAD_TYPE,

@@ -70,10 +70,12 @@ def test_demo_flies_on_tagtracker_tunnel_pulses_from_a_companion_ten_minutes_off
     assert clocks and abs(clocks[-1]["offset_s"] - 600.0) < 0.5, clocks[-1]
     used = [d for d in log.of_type("detection") if d["used"]]
     assert len(used) > 100
-    # the power came through 10 log10(noise_psd) + snr as the simulator's receiver measured it
-    truth = {round(r["t_sent"], 6): r["rssi_db"] for r in read_truth_file(result.log_dir).records
-             if r["type"] in ("pulse", "clutter") and r.get("t_sent") is not None}
-    matched = [(d["rssi_db"], truth[round(d["t_pulse_rx"], 6)]) for d in used
-               if round(d["t_pulse_rx"], 6) in truth]
-    assert len(matched) >= 0.9 * len(used)
-    assert all(abs(a - b) < 1e-6 for a, b in matched)
+    # the power came through 10 log10(noise_psd) + snr as the simulator's receiver measured
+    # it (a pulse and model clutter of the same period share a timestamp: either may match)
+    truth: dict[float, list[float]] = {}
+    for r in read_truth_file(result.log_dir).records:
+        if r["type"] in ("pulse", "clutter") and r.get("t_sent") is not None:
+            truth.setdefault(round(r["t_sent"], 6), []).append(r["rssi_db"])
+    matched = [any(abs(d["rssi_db"] - p) < 1e-6 for p in truth[round(d["t_pulse_rx"], 6)])
+               for d in used if round(d["t_pulse_rx"], 6) in truth]
+    assert len(matched) >= 0.9 * len(used) and all(matched)
