@@ -5,8 +5,9 @@ poses stay as the receiver sent them, WGS84 degrees and a compass yaw).
 `wire.decode`, applies the mission's `RadioPolicy` (allowed source networks, known tags,
 frequency -> tag within tolerance, clock skew) and puts accepted events on a bounded queue.
 
-Receiver clocks: every source (host, port) has a `ReceiverClock` (io.rxclock) learnt from its
-heartbeats' timestamps and their arrival on the mission clock. Once it has one, the source's
+Receiver clocks: every sending host (its IP address: a clock belongs to the computer, whatever
+port a program sends from) has a `ReceiverClock` (io.rxclock) learnt from its heartbeats'
+timestamps and their arrival on the mission clock. Once it has one, the host's
 timestamps are mapped to mission time before anything else looks at them (with
 ``clock_correction``; without, they are estimated and logged but used as sent), so a receiver
 whose clock is minutes off or drifting still has its pulses posed at the right moment. The
@@ -65,7 +66,7 @@ Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 POLICY_REASONS = ("source_not_allowed", "clock_offset_limit", "time_skew", "unknown_tag",
                   "unknown_freq", "tag_freq_mismatch")
 MAX_CLOCK_SOURCES = 64
-"""Receiver clocks kept; the least recently heard source is forgotten beyond this."""
+"""Receiver clocks kept; the least recently heard host is forgotten beyond this."""
 
 
 def _always() -> bool:
@@ -254,8 +255,8 @@ class RadioReceiver:
         self._last_heartbeat_s: float | None = None
         self._last_detection_s: float | None = None
         self._socket_errors = 0
-        self._clocks: dict[tuple[str, int], ReceiverClock] = {}
-        self._next_report: dict[tuple[str, int], float] = {}
+        self._clocks: dict[str, ReceiverClock] = {}
+        self._next_report: dict[str, float] = {}
 
     # -- life -----------------------------------------------------------------------------
 
@@ -386,29 +387,29 @@ class RadioReceiver:
             raise WireError("clock_offset_limit", f"t is {event.t - now_s:+.0f} s from now, "
                             f"more than receiver.max_clock_offset_s = "
                             f"{policy.max_clock_offset_s:g} s")
-        clock = self._clocks.pop(source, None)
+        host = source[0]  # the clock is the sending computer's, whatever port it sends from
+        clock = self._clocks.pop(host, None)
         if clock is None:
             clock = ReceiverClock(bucket_s=self.clock_bucket_s)
             while len(self._clocks) >= MAX_CLOCK_SOURCES:
                 forgotten = next(iter(self._clocks))
                 del self._clocks[forgotten]
                 self._next_report.pop(forgotten, None)
-        self._clocks[source] = clock  # most recently heard last
+        self._clocks[host] = clock  # most recently heard last
         if self.feeds_clock(event) and policy.clock_synced():
             before = clock.offset_s if clock.ready else None
             change = clock.observe(event.t, now_s)
-            name = f"{source[0]}:{source[1]}"
             if change is not None:
-                report = clock.report(name, change, before if change == "jump" else None)
+                report = clock.report(host, change, before if change == "jump" else None)
                 self._report_clock(report, source, now_s)
-            elif now_s >= self._next_report.get(source, -math.inf):
-                self._report_clock(clock.report(name, "update"), source, now_s)
+            elif now_s >= self._next_report.get(host, -math.inf):
+                self._report_clock(clock.report(host, "update"), source, now_s)
         if not (policy.clock_correction and clock.ready):
             return event
         return dataclasses.replace(event, t=clock.to_mission(event.t))
 
     def _report_clock(self, report: ClockReport, source: tuple[str, int], now_s: float) -> None:
-        self._next_report[source] = now_s + self.policy.clock_report_every_s
+        self._next_report[source[0]] = now_s + self.policy.clock_report_every_s
         if report.kind == "jump":
             log.warning("radio: the clock of %s jumped from %+.3f s to %+.3f s against the "
                         "mission clock", report.source, report.previous_offset_s or 0.0,
@@ -418,9 +419,9 @@ class RadioReceiver:
                      report.offset_s)
         self._enqueue(RadioEvent(now_s, source, None, report, None), *source)
 
-    def clock_of(self, host: str, port: int) -> ReceiverClock | None:
-        """The learnt clock of a source, if it has sent anything."""
-        return self._clocks.get((host, port))
+    def clock_of(self, host: str, port: int | None = None) -> ReceiverClock | None:
+        """The learnt clock of a sending host (any port), if it has sent anything."""
+        return self._clocks.get(host)
 
     def note_socket_error(self, exc: Exception) -> None:
         self._socket_errors += 1

@@ -146,7 +146,7 @@ class ReceiverClockRecord(Record):
     estimate, every 10 s of mission time, and when it jumps."""
 
     type: Literal["receiver_clock"]
-    source: str = f("The receiver, HOST:PORT its datagrams come from.")
+    source: str = f("The receiver: the host (IP address) its datagrams come from.")
     kind: Literal["first", "update", "jump"] = f(
         "first: the first estimate; update: periodic; jump: the receiver's clock stepped "
         "(previous_offset_s is the estimate before).")

@@ -52,7 +52,8 @@ MAX_DRIFT_PPM = 50_000.0
 
 @dataclass(frozen=True, slots=True)
 class ClockReport:
-    """A receiver clock estimate for the flight log (``receiver_clock`` records).
+    """A receiver clock estimate for the flight log (``receiver_clock`` records); ``source``
+    is the sending host.
 
     ``kind``: ``first`` (the first estimate of this source), ``update`` (periodic), ``jump``
     (the receiver's clock stepped; ``previous_offset_s`` is the estimate before it)."""
