@@ -149,6 +149,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--radios-only and --vehicle URL go together")
     if args.radios_only and args.no_radios:
         parser.error("--radios-only and --no-radios exclude each other")
+    if args.radios_only and args.radio_format != "wire-v1":
+        parser.error("--radio-format mavlink-tunnel is not available with --radios-only")
     try:
         mission = load_mission(args.mission)
     except ConfigError as exc:

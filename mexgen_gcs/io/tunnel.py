@@ -68,6 +68,7 @@ from mexgen_gcs.io.wire import Detection, Heartbeat
 __all__ = ["HEARTBEAT_STRUCT", "PULSE_STRUCT", "TUNNEL_REASONS", "PulseInfo", "TunnelReceiver",
            "pack_pulse", "pulse_event", "unpack_pulse"]
 
+
 class TunnelReceiver(RadioReceiver):
     """A `RadioReceiver` for MAVLink TUNNEL pulse reports (see the module docstring);
     ``calibration_db`` = ``receiver.tunnel_calibration_db``."""
