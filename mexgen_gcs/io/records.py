@@ -142,8 +142,9 @@ class Radio(Record):
 
 
 class ReceiverClockRecord(Record):
-    """A receiver's clock against the mission clock, learnt from its heartbeats: its first
-    estimate, every 10 s of mission time, and when it jumps."""
+    """A receiver's clock against the mission clock, learnt from its heartbeats (a MAVLink
+    TUNNEL source: its pulse reports; docs/receiver-clocks.md): its first estimate, every 10 s
+    of mission time, and when it jumps."""
 
     type: Literal["receiver_clock"]
     source: str = f("The receiver: the host (IP address) its datagrams come from.")
@@ -154,7 +155,7 @@ class ReceiverClockRecord(Record):
                         "heartbeats' line at the newest one).", "s")
     drift_ppm: float = f("How fast the receiver's clock runs against the mission clock "
                          "(0 until 20 s of heartbeats).", "ppm")
-    samples: int = f("Heartbeats in the fit's window.", ge=0)
+    samples: int = f("Samples (heartbeats) in the fit's window.", ge=0)
     spread_s: Num = f("Spread of the per-bucket least-delayed heartbeats about the fit.", "s")
     previous_offset_s: Num = f("The offset before a jump.", "s", default=None)
     correcting: bool = f("Whether pulse times are corrected with it "

@@ -17,7 +17,8 @@ The offset is the regression line at ``m_ref``: it is biased low by the mean lea
 bucket (the loopback tests: under a millisecond of wall time), which is the accuracy the
 pulse times get.
 
-Jumps: a sample further than ``jump_s`` from the fit is held back; ``jump_confirm`` such
+Jumps: a sample further than ``jump_s`` (or ``JUMP_SPREADS`` times the spread of the bucket
+maxima about the fit, when larger) from the fit is held back; ``jump_confirm`` such
 samples in a row, all on the same side, mean the receiver's clock stepped (an NTP or GPS time
 fix on a companion computer that booted without a real-time clock): the window restarts from
 them and `observe` says ``"jump"``. A single late datagram (a delay spike) is dropped from the
@@ -45,6 +46,9 @@ JUMP_S = 5.0
 """A step smaller than this is followed by the fit (within a bucket when the clock steps
 forward, over the window when back) instead of restarting it: the mission clock a simulated
 vehicle gives a loaded machine at speed-up 10 wanders by +-3 s (docs/receiver-clocks.md)."""
+JUMP_SPREADS = 4.0
+"""...or this many times the fit's own spread, when that is larger: a jump must stand out of
+the noise the samples already show (the mission clock's own wander under load)."""
 JUMP_CONFIRM = 3
 MAX_DRIFT_PPM = 50_000.0
 """A fitted drift beyond +-5 % is not a crystal's: the fit keeps the last sane value."""
@@ -135,7 +139,8 @@ class ReceiverClock:
         m = float(arrival_m)
         if self._ready:
             err = d - self._predict_d(m)
-            if abs(err) > self.jump_s:
+            spread = self.spread_s if math.isfinite(self.spread_s) else 0.0
+            if abs(err) > max(self.jump_s, JUMP_SPREADS * spread):
                 self._pending.append((m, d))
                 self.samples_held_back += 1
                 if len(self._pending) < self.jump_confirm:

@@ -200,3 +200,23 @@ async def test_a_companion_clock_ten_minutes_off_is_learnt_from_its_pulses(
     assert len(dets) == 40 and rx.stats().rejects == {}
     # read 0.3 s late: the fit cannot tell the detector's latency from the clock's offset
     assert all(abs(e.event.t - (e.recv_time_s)) < 0.01 for e in dets)
+
+
+def test_the_mission_chooses_the_receiver_and_refuses_an_unknown_format() -> None:
+    from pathlib import Path
+
+    from mexgen_gcs.config import load_mission
+    from mexgen_gcs.errors import ConfigError
+    from mexgen_gcs.io.radio_udp import RadioReceiver
+    from mexgen_gcs.mission.run import apply_overrides, make_receiver
+
+    demo = load_mission(Path(__file__).resolve().parents[2] / "missions" / "demo.yaml")
+    policy = RadioPolicy.from_mission(demo)
+    assert type(make_receiver(demo, "udp://127.0.0.1:0", policy)) is RadioReceiver
+    tunnel = apply_overrides(demo, {"receiver.format": "mavlink-tunnel",
+                                    "receiver.tunnel_calibration_db": -30.0})
+    rx = make_receiver(tunnel, "udp://127.0.0.1:0", RadioPolicy.from_mission(tunnel))
+    assert isinstance(rx, TunnelReceiver) and rx.calibration_db == -30.0
+    assert policy.clock_correction and policy.max_clock_offset_s == 2_592_000.0
+    with pytest.raises(ConfigError, match=r"receiver\.format"):
+        apply_overrides(demo, {"receiver.format": "json"})

