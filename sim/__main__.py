@@ -25,6 +25,7 @@ from sim.params import parse_param_flag
 from sim.rider import RadioRider, RiderOptions
 from sim.runner import Simulation
 from sim.scenario import Address, SimOptions, faults_of
+from sim.tunnel_radio import RADIO_FORMATS
 from sim.vehicle_link import VehicleEndpoint, parse_vehicle_url
 
 
@@ -124,6 +125,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "uploaded it (a .plan, .kml or .geojson polygon, as area.from reads)")
     p.add_argument("--keep-running", action="store_true",
                    help="do not exit after landing and disarming")
+    p.add_argument("--radio-format", choices=RADIO_FORMATS, default="wire-v1",
+                   help="what the receiver sends: wire-v1 JSON datagrams (default) or "
+                   "mavlink-tunnel (TagTracker's MAVLink TUNNEL PulseInfo_t)")
     p.add_argument("--no-radios", action="store_true",
                    help="simulate the vehicle only, no tags and no datagrams (e.g. when "
                         "radios ride on it from another process with --radios-only)")
@@ -160,6 +164,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error("--radios-only and --vehicle URL go together")
     if args.radios_only and args.no_radios:
         parser.error("--radios-only and --no-radios exclude each other")
+    if args.radios_only and args.radio_format != "wire-v1":
+        parser.error("--radio-format mavlink-tunnel is not available with --radios-only")
     try:
         mission = load_mission(args.mission)
     except ConfigError as exc:
@@ -179,7 +185,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         system_time=args.system_time, seed=args.seed, mavlink=args.mavlink, gcs=args.gcs,
         radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
         extra_faults=tuple(args.fault), keep_running=args.keep_running,
-        radios=not args.no_radios, params=tuple(args.param), fence_latlon_deg=fence)
+        radios=not args.no_radios, params=tuple(args.param), fence_latlon_deg=fence,
+        radio_format=args.radio_format)
     try:
         sim = Simulation(mission, options)
     except (OSError, ValueError) as exc:

@@ -13,6 +13,8 @@ Kinds and their fields:
 - ``detection_dropout(duration_s, probability)``: each detection is lost with ``probability``.
 - ``clutter(duration_s, rate_per_s)``: extra spurious detections at ``rate_per_s`` (sim).
 - ``clock_offset(offset_s)``: from ``at_s`` on, datagram timestamps are shifted by ``offset_s``.
+- ``clock_drift(ppm)``: from ``at_s`` on, the receiver's clock runs ``ppm`` parts per million
+  fast (negative: slow): datagram timestamps gain ``ppm * 1e-6 * (t - at_s)`` (sim seconds).
 - ``pilot_takeover(mode, land_after_s)``: a pilot with an RC transmitter switches the vehicle to
   ``mode`` (POSCTL or ALTCTL, sticks centred: it brakes and holds) and, ``land_after_s`` sim
   seconds later, to LAND (it lands and disarms). Offboard setpoints are ignored in between,
@@ -34,10 +36,13 @@ KINDS: dict[str, tuple[str, ...]] = {
     "detection_dropout": ("duration_s", "probability"),
     "clutter": ("duration_s", "rate_per_s"),
     "clock_offset": ("offset_s",),
+    "clock_drift": ("ppm",),
     "pilot_takeover": ("mode", "land_after_s"),
 }
 _DURATIONAL = {"link_drop", "gps_loss", "radio_silence", "detection_dropout", "clutter",
                "pilot_takeover"}
+#: Faults that stay in effect once started (the receiver's clock).
+_PERMANENT = {"clock_offset", "clock_drift"}
 #: Fields that are text, not numbers.
 _TEXT_FIELDS = {"mode"}
 #: Modes a pilot can switch to with sticks centred (the vehicle brakes and holds).
@@ -54,6 +59,7 @@ class Fault:
     probability: float = 1.0
     rate_per_s: float = 0.0
     offset_s: float = 0.0
+    ppm: float = 0.0
     mode: str = "POSCTL"
     land_after_s: float = DEFAULT_LAND_AFTER_S
 
@@ -129,7 +135,7 @@ class FaultSchedule:
                 self._started[i] = wall_s
                 out.append(("start", f))
             if f.kind not in _DURATIONAL:
-                self._ended.add(i)  # one-shot (battery_sag) or permanent (clock_offset)
+                self._ended.add(i)  # one-shot (battery_sag) or permanent (clock faults)
                 continue
             elapsed = wall_s - self._started[i] if f.kind == "link_drop" else sim_s - f.at_s
             if elapsed >= f.length_s:
@@ -138,9 +144,9 @@ class FaultSchedule:
         return out
 
     def active(self, kind: str) -> list[Fault]:
-        """Faults of ``kind`` in effect now (clock offsets stay in effect once started)."""
+        """Faults of ``kind`` in effect now (clock faults stay in effect once started)."""
         return [f for i, f in enumerate(self.faults) if f.kind == kind and i in self._started
-                and (i not in self._ended or kind == "clock_offset")]
+                and (i not in self._ended or kind in _PERMANENT)]
 
     def next_start_s(self, after_s: float) -> float:
         """Sim time of the next fault start, or end on sim time, after ``after_s`` (inf if none)."""

@@ -16,8 +16,9 @@ Reality: with a ``sim.reality`` profile other than ``matched`` the receiver's po
 one world drawn from that profile (:mod:`mexgen_gcs.core.reality`: transmit offsets, the
 exponent, an antenna pattern, shadowing, per-pulse fading, tag heights, a compass bias), not
 from the mission's model; the truth header records the drawn world.
-Faults: radio_silence (nothing sent), detection_dropout, clutter, clock_offset, gps_loss (no
-pose in the datagrams). The truth log records every pulse with its true power.
+Faults: radio_silence (nothing sent), detection_dropout, clutter, clock_offset, clock_drift
+(the receiver's clock off or running fast/slow), gps_loss (no pose in the datagrams). The truth
+log records every pulse with its true power.
 """
 
 from __future__ import annotations
@@ -157,7 +158,9 @@ class RadioSim:
         return bool(self.faults.active("radio_silence"))
 
     def _t_sent(self, t: float) -> float:
-        return self.unix_of(t) + sum(f.offset_s for f in self.faults.active("clock_offset"))
+        """The receiver's clock at sim time t: the vehicle's, plus the clock faults."""
+        return (self.unix_of(t) + sum(f.offset_s for f in self.faults.active("clock_offset"))
+                + sum(f.ppm * 1e-6 * (t - f.at_s) for f in self.faults.active("clock_drift")))
 
     def _pulse(self, i: int, t: float, pose: ReceiverPose) -> list[bytes]:
         tag = self.tags[i]

@@ -38,7 +38,8 @@ from sim.scenario import Address, build_tags
 from sim.truth import TruthWriter
 from sim.vehicle_link import PoseSample, VehicleEndpoint, VehicleTrack
 
-RADIO_FAULTS = {"radio_silence", "detection_dropout", "clutter", "clock_offset"}
+RADIO_FAULTS = {"radio_silence", "detection_dropout", "clutter", "clock_offset",
+                "clock_drift"}
 RIDER_SYSID = 251
 RIDER_COMPID = mavlink.MAV_COMP_ID_PERIPHERAL
 TICK_S = 0.01

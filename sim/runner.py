@@ -40,6 +40,7 @@ from sim.scenario import (
 )
 from sim.takeover import NO_TAKEOVER, TakeoverLog, pilot_mode
 from sim.truth import TruthWriter
+from sim.tunnel_radio import TunnelEncoder
 from sim.vehicle import MavlinkVehicle
 
 TICK_S = 0.01
@@ -93,6 +94,8 @@ class Simulation:
                               world=reality_world(mission, self.seed))
         self._radio_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._radio_sock.setblocking(False)
+        self._tunnel = (TunnelEncoder(options.sysid)
+                        if options.radio_format == "mavlink-tunnel" else None)
         self._next_vehicle_truth_s = 0.0
         self._stop = asyncio.Event()
         self._done_wall_s: float | None = None
@@ -105,6 +108,8 @@ class Simulation:
             self._mav_transport.sendto(data, addr)
 
     def _radio_send(self, data: bytes) -> None:
+        if self._tunnel is not None:
+            data = self._tunnel.encode(data)
         try:
             self._radio_sock.sendto(data, self.options.radio)
         except OSError:  # nobody listening yet, or the buffer is full: a lost datagram

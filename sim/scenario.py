@@ -41,6 +41,8 @@ class SimOptions:
     """PX4 parameters set before the start (``--param NAME=VALUE``), over the defaults."""
     fence_latlon_deg: tuple[tuple[float, float], ...] = field(default=())
     """An inclusion fence already on board at the start (``--fence FILE``)."""
+    radio_format: str = "wire-v1"
+    """wire-v1, or mavlink-tunnel (TagTracker's TUNNEL PulseInfo_t, sim.tunnel_radio)."""
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:

@@ -154,7 +154,7 @@ LAYERS: dict[str, set[str]] = {
 #: what sim (a separate program) may use of mexgen_gcs
 SIM_MAY_IMPORT = ("mexgen_gcs.core", "mexgen_gcs.config", "mexgen_gcs.errors",
                   "mexgen_gcs.io.wire", "mexgen_gcs.io.jsonl", "mexgen_gcs.io.records",
-                  "mexgen_gcs.io.truthfile")
+                  "mexgen_gcs.io.truthfile", "mexgen_gcs.io.pulseinfo")
 #: (importer, imported) that break the layers, being removed elsewhere; emptied by the lead
 KNOWN_LAYER_BREAKS: frozenset[tuple[str, str]] = frozenset()
 

@@ -272,9 +272,31 @@ class Receiver(Section):
         description="A reported frequency maps to a tag within this many Hz.",
     )
     pulse_period_s: Float = Field(1.0, gt=0.0, le=60.0, description="Tag pulse period, seconds.")
+    format: Literal["wire-v1", "mavlink-tunnel"] = Field(
+        "wire-v1",
+        description="What arrives on `listen`: wire-v1 = the GCS's JSON datagrams "
+        "(docs/wire-format.md); mavlink-tunnel = MAVLink TUNNEL messages carrying "
+        "TagTracker/UAV-RT PulseInfo_t (docs/receiver-interop.md).",
+    )
     max_clock_skew_s: Float = Field(
         30.0, gt=0.0, le=86_400.0,
-        description="Detections whose timestamp is further than this from now are rejected, s.",
+        description="Detections whose timestamp, on the mission clock after the receiver's "
+        "clock correction, is further than this from now are rejected, s.",
+    )
+    max_clock_offset_s: Float = Field(
+        2_592_000.0, gt=0.0, le=1e11,
+        description="Timestamps further than this from now as sent (before correction) are "
+        "refused as garbage, s (default 30 days; a receiver that boots at 1970 needs 1e11).",
+    )
+    clock_correction: Bool = Field(
+        True,
+        description="Learn each receiver's clock offset and drift from its heartbeats and map "
+        "its timestamps to the mission clock (false: log the estimate, use times as sent).",
+    )
+    tunnel_calibration_db: Float = Field(
+        0.0, ge=-300.0, le=300.0,
+        description="mavlink-tunnel only: added to 10 log10(noise_psd) + snr to give rssi_db, "
+        "dB (measure it against a known source).",
     )
     heartbeat_timeout_s: Float = Field(
         3.0, gt=0.0, le=600.0, description="The receiver counts as silent after this long, s."

@@ -127,6 +127,15 @@ class ClockOffset(_Fault):
     offset_s: Float = Field(ge=-86_400.0, le=86_400.0, description="Clock offset added, seconds.")
 
 
+class ClockDrift(_Fault):
+    """The receiver's clock runs fast or slow."""
+
+    kind: Literal["clock_drift"] = Field(description="Fault kind.")
+    ppm: Float = Field(ge=-100_000.0, le=100_000.0,
+                       description="Receiver clock rate error from at_s on, parts per million "
+                       "(positive: fast).")
+
+
 class PilotTakeover(_Fault):
     """A pilot takes over with the RC transmitter: a mode switch at `at_s`, LAND later."""
 
@@ -142,12 +151,12 @@ class PilotTakeover(_Fault):
 
 Fault = Annotated[
     LinkDrop | GpsLoss | BatterySag | RadioSilence | DetectionDropout | Clutter | ClockOffset
-    | PilotTakeover,
+    | ClockDrift | PilotTakeover,
     Field(discriminator="kind"),
 ]
 FAULT_MODELS: tuple[type[_Fault], ...] = (
     LinkDrop, GpsLoss, BatterySag, RadioSilence, DetectionDropout, Clutter, ClockOffset,
-    PilotTakeover,
+    ClockDrift, PilotTakeover,
 )
 
 

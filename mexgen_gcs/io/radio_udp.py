@@ -4,6 +4,19 @@ poses stay as the receiver sent them, WGS84 degrees and a compass yaw).
 `RadioReceiver` binds a UDP socket (asyncio datagram endpoint), decodes each datagram with
 `wire.decode`, applies the mission's `RadioPolicy` (allowed source networks, known tags,
 frequency -> tag within tolerance, clock skew) and puts accepted events on a bounded queue.
+
+Receiver clocks: every sending host (its IP address: a clock belongs to the computer, whatever
+port a program sends from) has a `ReceiverClock` (io.rxclock) learnt from its heartbeats'
+timestamps and their arrival on the mission clock. Once it has one, the host's
+timestamps are mapped to mission time before anything else looks at them (with
+``clock_correction``; without, they are estimated and logged but used as sent), so a receiver
+whose clock is minutes off or drifting still has its pulses posed at the right moment. The
+guard ``max_clock_offset_s`` refuses (``clock_offset_limit``) a timestamp further than that
+from now before any correction: a value no companion computer's clock could be off by is
+garbage, not a clock to learn. ``max_clock_skew_s`` then applies to the corrected time (a
+source without an estimate yet: to the time as sent). The estimates go on the queue as
+`ClockReport` events: the first of each source, a jump, and one every
+``clock_report_every_s`` mission seconds.
 Nothing a sender does can raise out of it: every rejected datagram is counted under its
 reason and logged at most once per reason per `log_interval_s`. When the queue is full the
 event is counted under `queue_full` and logged, never dropped silently.
@@ -12,8 +25,10 @@ event is counted under `queue_full` and logged, never dropped silently.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import ipaddress
 import logging
+import math
 import socket
 import time
 from collections import Counter
@@ -23,6 +38,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from mexgen_gcs.config.urls import UdpAddress, parse_udp_url
 from mexgen_gcs.errors import WireError
+from mexgen_gcs.io.rxclock import BUCKET_S, ClockReport, ReceiverClock
 from mexgen_gcs.io.wire import Detection, Heartbeat, decode
 
 if TYPE_CHECKING:
@@ -30,6 +46,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "RECEIVE_QUEUE_SIZE",
+    "ClockReport",
     "RadioEvent",
     "RadioPolicy",
     "RadioReceiver",
@@ -46,18 +63,27 @@ SOCKET_BUFFER_BYTES = 1 << 20
 Network = ipaddress.IPv4Network | ipaddress.IPv6Network
 
 #: Reasons the policy adds to the wire reasons.
-POLICY_REASONS = ("source_not_allowed", "time_skew", "unknown_tag", "unknown_freq",
-                  "tag_freq_mismatch")
+POLICY_REASONS = ("source_not_allowed", "clock_offset_limit", "time_skew", "unknown_tag",
+                  "unknown_freq", "tag_freq_mismatch")
+MAX_CLOCK_SOURCES = 64
+"""Receiver clocks kept; the least recently heard host is forgotten beyond this."""
+
+
+def _always() -> bool:
+    return True
 
 
 class RadioEvent(NamedTuple):
     """An accepted datagram: receive time (policy clock, unix s), sender (host, port), the
-    mission tag it maps to (None for a heartbeat) and the decoded event."""
+    mission tag it maps to (None for a heartbeat or a clock report) and the event, its ``t``
+    on the mission clock (corrected for the receiver's clock when there is an estimate);
+    ``t_rx_s`` = the ``t`` the receiver sent (None for a clock report)."""
 
     recv_time_s: float
     source: tuple[str, int]
     tag_id: str | None
-    event: Detection | Heartbeat
+    event: Detection | Heartbeat | ClockReport
+    t_rx_s: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,10 +97,18 @@ class RadioPolicy:
     max_clock_skew_s: float = 30.0
     clock: Callable[[], float] = time.time
     """Unix time now; the receive time of events and the reference for clock skew."""
+    max_clock_offset_s: float = 2_592_000.0
+    """Timestamps further than this from now (before correction) are refused outright."""
+    clock_correction: bool = True
+    """Map each source's timestamps to mission time with its learnt clock."""
+    clock_synced: Callable[[], bool] = _always
+    """False while `clock` is not yet the mission clock (it is learning the vehicle's):
+    receiver clocks are not fitted against it then."""
+    clock_report_every_s: float = 10.0
 
     @classmethod
-    def from_mission(cls, mission: Mission, clock: Callable[[], float] = time.time
-                     ) -> RadioPolicy:
+    def from_mission(cls, mission: Mission, clock: Callable[[], float] = time.time,
+                     clock_synced: Callable[[], bool] = _always) -> RadioPolicy:
         r = mission.receiver
         return cls(
             tag_freqs_hz=tuple((t.id, t.freq_hz) for t in mission.tags),
@@ -82,6 +116,9 @@ class RadioPolicy:
             allowed_sources=r.networks(),
             max_clock_skew_s=r.max_clock_skew_s,
             clock=clock,
+            max_clock_offset_s=r.max_clock_offset_s,
+            clock_correction=r.clock_correction,
+            clock_synced=clock_synced,
         )
 
     @property
@@ -192,6 +229,9 @@ class RadioReceiver:
     Use as ``async with RadioReceiver(url, policy) as rx: event = await rx.get()``.
     """
 
+    clock_bucket_s = BUCKET_S
+    """Receiver-clock fit bucket (io.rxclock): one heartbeat a second, 2 s."""
+
     def __init__(
         self,
         listen: str | UdpAddress,
@@ -215,6 +255,8 @@ class RadioReceiver:
         self._last_heartbeat_s: float | None = None
         self._last_detection_s: float | None = None
         self._socket_errors = 0
+        self._clocks: dict[str, ReceiverClock] = {}
+        self._next_report: dict[str, float] = {}
 
     # -- life -----------------------------------------------------------------------------
 
@@ -276,22 +318,51 @@ class RadioReceiver:
             self.rejects["internal_error"] += 1
             log.exception("radio receiver: unexpected error handling a datagram")
 
+    def decode_events(self, data: bytes) -> list[tuple[Detection | Heartbeat | WireError, bool]]:
+        """The events in one datagram (wire format v1: exactly one), each with whether its
+        ``t`` is on the receiver's clock (False: already the mission clock); an event that is
+        refused is the WireError saying why."""
+        try:
+            return [(decode(data), True)]
+        except WireError as exc:
+            return [(exc, True)]
+
+    def feeds_clock(self, event: Detection | Heartbeat) -> bool:
+        """Whether the event's ``t`` is a sample of its source's clock: a heartbeat, stamped
+        when sent (a detection is stamped when its pulse was heard, an unknown time before)."""
+        return isinstance(event, Heartbeat)
+
     def _handle(self, data: bytes, addr: Any) -> None:
         self._datagrams += 1
         host = str(addr[0]) if isinstance(addr, tuple) and addr else "?"
         port = int(addr[1]) if isinstance(addr, tuple) and len(addr) > 1 else 0
-        try:
-            if not self.policy.source_allowed(host):
-                raise WireError("source_not_allowed", f"{host} is not in receiver.allowed_sources")
-            now_s = self.policy.clock()
-            tag_id, event = self.policy.resolve(decode(data), now_s)
-        except WireError as exc:
-            self.rejects[exc.reason] += 1
-            self._log.warning(exc.reason, "radio: rejected a datagram from %s:%d: %s",
-                              host, port, exc)
+        if not self.policy.source_allowed(host):
+            self._reject(WireError("source_not_allowed",
+                                   f"{host} is not in receiver.allowed_sources"), host, port)
             return
+        for event, on_rx_clock in self.decode_events(data):
+            try:
+                if isinstance(event, WireError):
+                    raise event
+                now_s = self.policy.clock()
+                t_rx = event.t
+                if on_rx_clock:
+                    event = self._on_mission_clock(event, (host, port), now_s)
+                tag_id, event = self.policy.resolve(event, now_s)
+            except WireError as exc:
+                self._reject(exc, host, port)
+                continue
+            self._enqueue(RadioEvent(now_s, (host, port), tag_id, event, t_rx), host, port)
+
+    def _reject(self, exc: WireError, host: str, port: int) -> None:
+        self.rejects[exc.reason] += 1
+        self._log.warning(exc.reason, "radio: rejected a datagram from %s:%d: %s",
+                          host, port, exc)
+
+    def _enqueue(self, item: RadioEvent, host: str, port: int) -> None:
+        event, now_s, tag_id = item.event, item.recv_time_s, item.tag_id
         try:
-            self.queue.put_nowait(RadioEvent(now_s, (host, port), tag_id, event))
+            self.queue.put_nowait(item)
         except asyncio.QueueFull:
             self.rejects["queue_full"] += 1
             self._log.warning("queue_full", "radio: event queue full (%d); dropped a %s from "
@@ -300,10 +371,57 @@ class RadioReceiver:
         if isinstance(event, Heartbeat):
             self._heartbeats += 1
             self._last_heartbeat_s = now_s
-        else:
+        elif isinstance(event, Detection):
             assert tag_id is not None
             self._accepted_by_tag[tag_id] += 1
             self._last_detection_s = now_s
+
+    # -- receiver clocks ----------------------------------------------------------------------
+
+    def _on_mission_clock(self, event: Detection | Heartbeat, source: tuple[str, int],
+                          now_s: float) -> Detection | Heartbeat:
+        """The event with its ``t`` on the mission clock; fits the source's clock with it
+        first when it is a clock sample. Raises WireError(clock_offset_limit)."""
+        policy = self.policy
+        if abs(event.t - now_s) > policy.max_clock_offset_s:
+            raise WireError("clock_offset_limit", f"t is {event.t - now_s:+.0f} s from now, "
+                            f"more than receiver.max_clock_offset_s = "
+                            f"{policy.max_clock_offset_s:g} s")
+        host = source[0]  # the clock is the sending computer's, whatever port it sends from
+        clock = self._clocks.pop(host, None)
+        if clock is None:
+            clock = ReceiverClock(bucket_s=self.clock_bucket_s)
+            while len(self._clocks) >= MAX_CLOCK_SOURCES:
+                forgotten = next(iter(self._clocks))
+                del self._clocks[forgotten]
+                self._next_report.pop(forgotten, None)
+        self._clocks[host] = clock  # most recently heard last
+        if self.feeds_clock(event) and policy.clock_synced():
+            before = clock.offset_s if clock.ready else None
+            change = clock.observe(event.t, now_s)
+            if change is not None:
+                report = clock.report(host, change, before if change == "jump" else None)
+                self._report_clock(report, source, now_s)
+            elif now_s >= self._next_report.get(host, -math.inf):
+                self._report_clock(clock.report(host, "update"), source, now_s)
+        if not (policy.clock_correction and clock.ready):
+            return event
+        return dataclasses.replace(event, t=clock.to_mission(event.t))
+
+    def _report_clock(self, report: ClockReport, source: tuple[str, int], now_s: float) -> None:
+        self._next_report[source[0]] = now_s + self.policy.clock_report_every_s
+        if report.kind == "jump":
+            log.warning("radio: the clock of %s jumped from %+.3f s to %+.3f s against the "
+                        "mission clock", report.source, report.previous_offset_s or 0.0,
+                        report.offset_s)
+        elif report.kind == "first":
+            log.info("radio: %s's clock is %+.3f s from the mission clock", report.source,
+                     report.offset_s)
+        self._enqueue(RadioEvent(now_s, source, None, report, None), *source)
+
+    def clock_of(self, host: str, port: int | None = None) -> ReceiverClock | None:
+        """The learnt clock of a sending host (any port), if it has sent anything."""
+        return self._clocks.get(host)
 
     def note_socket_error(self, exc: Exception) -> None:
         self._socket_errors += 1

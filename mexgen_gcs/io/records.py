@@ -120,7 +120,11 @@ class Detection(Record):
     type: Literal["detection"]
     tag: str = f("Mission tag id.")
     rssi_db: float = f("Received signal strength.", "dB")
-    t_pulse: float = f("When the receiver heard the pulse (its clock).", "s")
+    t_pulse: float = f("When the receiver heard the pulse, on the mission clock (the "
+                       "receiver's time corrected by its learnt clock offset and drift, see "
+                       "receiver_clock).", "s")
+    t_pulse_rx: Num = f("The pulse time as the receiver sent it (its own clock).", "s",
+                        default=None)
     freq_hz: int | None = f("Carrier frequency, if the datagram gave one.", "Hz")
     rx_en_m: ENU | None = f("Receiver position at the pulse, [east, north, up]; absent when "
                             "the GCS had no pose for it.", "m", "ENU about home", default=None)
@@ -135,6 +139,27 @@ class Radio(Record):
     type: Literal["radio"]
     kind: Literal["heartbeat"] = f("Always 'heartbeat'.")
     listening: list[str] | None = f("Tag ids listened for; null = all.")
+
+
+class ReceiverClockRecord(Record):
+    """A receiver's clock against the mission clock, learnt from its heartbeats (a MAVLink
+    TUNNEL source: its pulse reports; docs/receiver-clocks.md): its first estimate, every 10 s
+    of mission time, and when it jumps."""
+
+    type: Literal["receiver_clock"]
+    source: str = f("The receiver: the host (IP address) its datagrams come from.")
+    kind: Literal["first", "update", "jump"] = f(
+        "first: the first estimate; update: periodic; jump: the receiver's clock stepped "
+        "(previous_offset_s is the estimate before).")
+    offset_s: float = f("Receiver clock minus mission clock now (the least-delayed "
+                        "heartbeats' line at the newest one).", "s")
+    drift_ppm: float = f("How fast the receiver's clock runs against the mission clock "
+                         "(0 until 20 s of heartbeats).", "ppm")
+    samples: int = f("Samples (heartbeats) in the fit's window.", ge=0)
+    spread_s: Num = f("Spread of the per-bucket least-delayed heartbeats about the fit.", "s")
+    previous_offset_s: Num = f("The offset before a jump.", "s", default=None)
+    correcting: bool = f("Whether pulse times are corrected with it "
+                         "(receiver.clock_correction).")
 
 
 class Estimate(Record):
@@ -308,8 +333,8 @@ class Result(Record):
 
 
 FLIGHT_RECORDS: tuple[type[Record], ...] = (
-    MissionHeader, Telemetry, Detection, Radio, Estimate, Cloud, Plan, Setpoint, Reject,
-    Event, Error, OperatorWarning, StatusText, Clock, LogLoss, Result)
+    MissionHeader, Telemetry, Detection, Radio, ReceiverClockRecord, Estimate, Cloud, Plan,
+    Setpoint, Reject, Event, Error, OperatorWarning, StatusText, Clock, LogLoss, Result)
 
 
 # -- simulator truth ----------------------------------------------------------------------

@@ -1,6 +1,10 @@
 """Radio ingest: every accepted datagram is logged, and each detection is posed at its OWN
 timestamp and handed to the decision core.
 
+Times: a datagram's ``t`` arrives already on the mission clock (the receiver's clock offset and
+drift learnt and applied by io.radio_udp); ``t_pulse_rx`` keeps the time as the receiver sent
+it, and each ``ClockReport`` becomes a ``receiver_clock`` record.
+
 Pose of a detection: the receiver pose the datagram carries (lat/lon horizontally about the
 mission home; ``alt_m`` is AMSL, so the height above the tags is ``alt_m`` minus the vehicle's
 home altitude from HOME_POSITION), else the vehicle's pose at the detection's ``t`` from the
@@ -18,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from mexgen_gcs.io.rxclock import ClockReport
 from mexgen_gcs.io.wire import Heartbeat
 from mexgen_gcs.mission.context import MissionContext
 
@@ -30,8 +35,12 @@ async def radio_ingest(ctx: MissionContext) -> None:
     queue = ctx.receiver.queue
     last_unposed_event = -math.inf
     while True:
-        _recv_t, _src, tag_id, msg = await queue.get()
+        item = await queue.get()
+        tag_id, msg, t_rx = item.tag_id, item.event, item.t_rx_s
         now = ctx.clock.now()
+        if isinstance(msg, ClockReport):
+            log_receiver_clock(ctx, now, msg)
+            continue
         ctx.last_radio_t = now
         if isinstance(msg, Heartbeat):
             ctx.last_heartbeat_t = now
@@ -43,7 +52,8 @@ async def radio_ingest(ctx: MissionContext) -> None:
         if pose is None:
             n = ctx.count("detections_unposed")
             ctx.log.write("detection", t=now, tag=tag_id, rssi_db=msg.rssi_db, t_pulse=msg.t,
-                          freq_hz=msg.freq_hz, used=False, why="no pose at t_pulse")
+                          t_pulse_rx=t_rx, freq_hz=msg.freq_hz, used=False,
+                          why="no pose at t_pulse")
             if ctx.t_airborne is not None and now - last_unposed_event >= UNPOSED_EVENT_EVERY_S:
                 last_unposed_event = now
                 span = ctx.poses.span
@@ -54,12 +64,30 @@ async def radio_ingest(ctx: MissionContext) -> None:
             continue
         xyz, yaw_rad = pose
         ctx.log.write("detection", t=now, tag=tag_id, rssi_db=msg.rssi_db, t_pulse=msg.t,
-                      freq_hz=msg.freq_hz, rx_en_m=xyz, rx_yaw_deg=math.degrees(yaw_rad))
+                      t_pulse_rx=t_rx, freq_hz=msg.freq_hz, rx_en_m=xyz,
+                      rx_yaw_deg=math.degrees(yaw_rad))
         try:
             ctx.core.add_detection(tag_id, msg.rssi_db, xyz, yaw_rad)
             ctx.det_times[tag_id].append(now)
         except (KeyError, ValueError) as exc:  # a tag the core lacks, a non-finite pose
             ctx.event("detection_unused", level=logging.WARNING, tag=tag_id, error=str(exc))
+
+
+def log_receiver_clock(ctx: MissionContext, now: float, report: ClockReport) -> None:
+    """A ``receiver_clock`` record; an event for a source's first estimate and a warning
+    event when its clock jumps."""
+    correcting = bool(getattr(ctx.receiver.policy, "clock_correction", True))
+    ctx.log.write("receiver_clock", t=now, source=report.source, kind=report.kind,
+                  offset_s=report.offset_s, drift_ppm=report.drift_ppm,
+                  samples=report.samples, spread_s=report.spread_s,
+                  previous_offset_s=report.previous_offset_s, correcting=correcting)
+    if report.kind == "first":
+        ctx.event("receiver_clock", source=report.source, offset_s=round(report.offset_s, 3),
+                  correcting=correcting)
+    elif report.kind == "jump":
+        ctx.event("receiver_clock_jump", level=logging.WARNING, source=report.source,
+                  offset_s=round(report.offset_s, 3),
+                  previous_offset_s=round(report.previous_offset_s or 0.0, 3))
 
 
 def receiver_pose(ctx: MissionContext, det: Any) -> tuple[np.ndarray, float] | None:

@@ -40,6 +40,7 @@ from mexgen_gcs.io.flightlog import FlightLogWriter
 from mexgen_gcs.io.mavlink_tap import TLOG_FILE
 from mexgen_gcs.io.radio_udp import RadioPolicy, RadioReceiver
 from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
+from mexgen_gcs.io.tunnel import TunnelReceiver
 from mexgen_gcs.io.vehicle import MavsdkVehicle
 from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
 from mexgen_gcs.mission.state import EndReason
@@ -133,10 +134,11 @@ async def fly_mission(
     flies the controller with something attached (the terminal UI); default: headless."""
     rng = np.random.default_rng(seed)
     core = mission.mission_core(rng.spawn(1)[0])
-    policy = RadioPolicy.from_mission(mission, clock=clock.now)
+    policy = RadioPolicy.from_mission(mission, clock=clock.now,
+                                      clock_synced=lambda: bool(getattr(clock, "synced", True)))
     with FlightLogWriter(log_dir, mission=mission, seed=seed, method=method,
                          clock=clock.now) as flight_log:
-        async with RadioReceiver(radio_url, policy) as receiver:
+        async with make_receiver(mission, radio_url, policy) as receiver:
             vehicle = MavsdkVehicle(tlog_path=log_dir / TLOG_FILE)
             truth = TagPositions(truth_path) if truth_path is not None else None
             controller = MissionController(
@@ -163,6 +165,15 @@ async def fly_mission(
                 await vehicle.close()
             result.log_dir = str(log_dir)
     return result
+
+
+def make_receiver(mission: Mission, radio_url: str, policy: RadioPolicy) -> RadioReceiver:
+    """The receiver of ``receiver.format``: wire-format JSON datagrams, or MAVLink TUNNEL
+    pulse reports (TagTracker / UAV-RT), on ``radio_url``."""
+    if mission.receiver.format == "mavlink-tunnel":
+        return TunnelReceiver(radio_url, policy,
+                              calibration_db=mission.receiver.tunnel_calibration_db)
+    return RadioReceiver(radio_url, policy)
 
 
 ESCALATION_EXIT_S = 4.0

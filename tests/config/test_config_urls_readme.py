@@ -63,4 +63,4 @@ def test_readme_yaml_examples_load(tmp_path: Path) -> None:
     mission = load_mission(path)
     assert [f.kind for f in mission.sim.faults] == [
         "link_drop", "gps_loss", "battery_sag", "radio_silence", "detection_dropout", "clutter",
-        "clock_offset"]
+        "clock_offset", "clock_drift"]

@@ -38,9 +38,12 @@ def fixture_rows(name: str) -> list[dict[str, Any]]:
 
 
 def make_policy(**changes: Any) -> RadioPolicy:
+    """The policy of the tests of the receiver's checks: receiver clocks are not fitted (the
+    mission clock counts as not synced), so times are used as sent; the clock tests below
+    switch it on."""
     args: dict[str, Any] = {"tag_freqs_hz": TAGS, "freq_tolerance_hz": 5000.0,
                             "allowed_sources": LOCAL, "max_clock_skew_s": 30.0,
-                            "clock": lambda: T0}
+                            "clock": lambda: T0, "clock_synced": lambda: False}
     args.update(changes)
     return RadioPolicy(**args)
 
@@ -278,3 +281,97 @@ def test_policy_from_mission() -> None:
     assert policy.allowed_sources == (ipaddress.ip_network("127.0.0.1/32"),)
     for f in (150_100_000, 150_104_000, 150_215_000, 150_300_000, 1):
         assert policy.tag_for_frequency(f) == mission.tag_for_frequency(f)
+
+
+# -- receiver clocks ---------------------------------------------------------------------------
+
+class MissionNow:
+    """A settable mission clock for the policy."""
+
+    def __init__(self, t: float) -> None:
+        self.t = t
+
+    def __call__(self) -> float:
+        return self.t
+
+
+async def _heartbeats_then_pulse(rx: RadioReceiver, sender: socket.socket, now: MissionNow,
+                                 offset_s: float, n: int = 30) -> None:
+    for i in range(n):
+        now.t = T0 + i
+        await send_all(rx, sender, [encode_heartbeat(T0 + i + offset_s)])
+    now.t = T0 + n
+    # a pulse heard half a second ago, stamped by the receiver's clock
+    await send_all(rx, sender, [encode_detection(T0 + n - 0.5 + offset_s, -50.0, tag="T2")])
+
+
+def _drain(rx: RadioReceiver) -> list[Any]:
+    return [rx.queue.get_nowait() for _ in range(rx.queue.qsize())]
+
+
+async def test_a_receiver_ten_minutes_off_is_learnt_and_its_pulses_corrected(
+        sender: socket.socket) -> None:
+    from mexgen_gcs.io.rxclock import ClockReport
+    now = MissionNow(T0)
+    policy = make_policy(clock=now, clock_synced=lambda: True, clock_report_every_s=10.0)
+    async with RadioReceiver("udp://127.0.0.1:0", policy) as rx:
+        await _heartbeats_then_pulse(rx, sender, now, 600.0)
+        items = _drain(rx)
+        source = ("127.0.0.1", sender.getsockname()[1])
+        clock = rx.clock_of(*source)
+    assert rx.stats().rejects == {}
+    reports = [e.event for e in items if isinstance(e.event, ClockReport)]
+    assert [r.kind for r in reports] == ["first", "update", "update"]  # at 0, 10, 20 s
+    assert all(abs(r.offset_s - 600.0) < 0.05 for r in reports)
+    assert reports[0].source == "127.0.0.1"
+    (det,) = [e for e in items if isinstance(e.event, Detection)]
+    assert det.tag_id == "T2" and det.t_rx_s == T0 + 30 - 0.5 + 600.0
+    assert abs(det.event.t - (T0 + 29.5)) < 0.05
+    beats = [e for e in items if isinstance(e.event, Heartbeat)]
+    assert len(beats) == 30 and all(abs(b.event.t - b.recv_time_s) < 0.05 for b in beats)
+    assert clock is not None and clock.samples == 30
+
+
+async def test_without_correction_the_offset_is_learnt_but_times_used_as_sent(
+        sender: socket.socket) -> None:
+    from mexgen_gcs.io.rxclock import ClockReport
+    now = MissionNow(T0)
+    policy = make_policy(clock=now, clock_synced=lambda: True, clock_correction=False)
+    async with RadioReceiver("udp://127.0.0.1:0", policy) as rx:
+        await _heartbeats_then_pulse(rx, sender, now, 600.0, n=3)
+        items = _drain(rx)
+        stats = rx.stats()
+    assert stats.rejects == {"time_skew": 4}  # 3 heartbeats, 1 detection
+    assert [e.event.kind for e in items if isinstance(e.event, ClockReport)] == ["first"]
+    assert abs(items[0].event.offset_s - 600.0) < 0.05
+
+
+async def test_a_timestamp_beyond_the_offset_guard_is_refused_before_learning(
+        sender: socket.socket) -> None:
+    now = MissionNow(T0)
+    policy = make_policy(clock=now, clock_synced=lambda: True, max_clock_offset_s=3600.0)
+    async with RadioReceiver("udp://127.0.0.1:0", policy) as rx:
+        await send_all(rx, sender, [encode_heartbeat(T0 + 7200.0),
+                                    encode_detection(T0 - 3601.0, -50.0, tag="T1"),
+                                    encode_heartbeat(T0 + 3599.0)])
+        items = _drain(rx)
+        assert rx.stats().rejects == {"clock_offset_limit": 2}
+        assert rx.clock_of("127.0.0.1", sender.getsockname()[1]).offset_s == 3599.0
+    assert [type(e.event).__name__ for e in items] == ["ClockReport", "Heartbeat"]
+
+
+async def test_a_jump_of_the_receiver_clock_is_reported(sender: socket.socket,
+                                                       caplog: pytest.LogCaptureFixture) -> None:
+    from mexgen_gcs.io.rxclock import ClockReport
+    caplog.set_level(logging.WARNING, logger="mexgen_gcs.io.radio_udp")
+    now = MissionNow(T0)
+    policy = make_policy(clock=now, clock_synced=lambda: True, clock_report_every_s=1e9)
+    async with RadioReceiver("udp://127.0.0.1:0", policy) as rx:
+        for i in range(20):
+            now.t = T0 + i
+            await send_all(rx, sender, [encode_heartbeat(T0 + i + (0.0 if i < 10 else 45.0))])
+        reports = [e.event for e in _drain(rx) if isinstance(e.event, ClockReport)]
+    assert [r.kind for r in reports] == ["first", "jump"]
+    assert abs(reports[1].offset_s - 45.0) < 0.05
+    assert reports[1].previous_offset_s == 0.0
+    assert any("jumped" in r.getMessage() for r in caplog.records)

@@ -143,6 +143,21 @@ def test_faults_silence_dropout_clutter_clock_offset() -> None:
     assert all(e.t == pytest.approx(T0_UNIX + t - 7.5, abs=0.3) for t, e in late)
 
 
+def test_clock_drift_and_offset_stamp_the_receivers_clock() -> None:
+    """A receiver 600 s off and 2000 ppm fast from sim time 0: every timestamp, heartbeats and
+    detections alike, is the vehicle's time plus 600 s plus 2e-3 of the elapsed sim time."""
+    model = RadioModel(clutter_rate=0.0, pd_max=1.0)
+    faults = [Fault("clock_offset", at_s=0.0, offset_s=600.0),
+              Fault("clock_drift", at_s=0.0, ppm=2000.0)]
+    radio, schedule = make_radio([static_tag("T", 150_000_000, 0.0, 100.0)], model,
+                                 faults=faults)
+    got = run(radio, 300.0, faults=schedule, step_s=0.01)
+    assert any(isinstance(e, Detection) for _, e in got)
+    assert any(isinstance(e, Heartbeat) for _, e in got)
+    for t, e in got:
+        assert e.t == pytest.approx(T0_UNIX + t + 600.0 + 2e-3 * t, abs=0.02)
+
+
 def test_gps_loss_leaves_pose_out() -> None:
     radio, _ = make_radio([static_tag("T", 150_000_000, 0.0, 100.0)],
                           RadioModel(clutter_rate=0.0, pd_max=1.0))
