@@ -254,6 +254,9 @@ class Receiver(Section):
         description="A reported frequency maps to a tag within this many Hz.",
     )
     pulse_period_s: Float = Field(1.0, gt=0.0, le=60.0, description="Tag pulse period, seconds.")
+    pulse_width_s: Float = Field(
+        0.02, gt=0.0, le=1.0,
+        description="Tag pulse width, seconds: the IQ receiver's detector is matched to it.")
     max_clock_skew_s: Float = Field(
         30.0, gt=0.0, le=86_400.0,
         description="Detections whose timestamp is further than this from now are rejected, s.",
