@@ -14,6 +14,7 @@ import numpy as np
 
 from mexgen_gcs.config import Mission
 from sim.faults import Fault, fault_from_config
+from sim.iq import IqOptions
 from sim.kinematics import Limits
 from sim.radios import TagTruth
 
@@ -37,6 +38,8 @@ class SimOptions:
     extra_faults: tuple[Fault, ...] = field(default=())
     keep_running: bool = False
     radios: bool = True
+    iq: IqOptions | None = None
+    """Serve the radio as IQ over rtl_tcp (``sim.iq``) instead of detection datagrams."""
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:

@@ -89,7 +89,9 @@ class PulseDetector:
         self.pfa_test = pfa_per_test(config.pfa_per_s, self.tests_per_s)
         self.factor = threshold_factor(self.dof, self.pfa_test)
         self._median_k = float(stats.gamma.median(channels.bins))
-        self.max_run = max(self.window + 2, math.ceil(config.cw_factor * self.window))
+        # runs last a pulse width longer than their exceedances (see `push`)
+        self.max_run = max(self.window + 2, math.ceil(config.cw_factor * self.window)) \
+            + self.window - 1
         self._noise_len = max(16, round(config.noise_window_s / frame_s))
         self._warmup = max(8, round(config.warmup_s / frame_s))
         self._hist_len = max(self._noise_len, self.max_run + self.window + 4)
@@ -100,6 +102,7 @@ class PulseDetector:
         self._noise_frames = 0
         self.noise_bin = np.full(ntags, np.nan)
         self._runs: list[_Run | None] = [None] * ntags
+        self._ex_tail = np.zeros((max(self.window - 1, 0), ntags), bool)
         self.stats = DetectorStats(per_tag=[0] * ntags)
 
     def reset(self) -> None:
@@ -108,6 +111,7 @@ class PulseDetector:
         self._clip_hist = self._clip_hist[:0]
         self._peak_hist = self._peak_hist[:0]
         self._runs = [None] * self.ntags
+        self._ex_tail = np.zeros((max(self.window - 1, 0), self.ntags), bool)
 
     def threshold(self) -> NDArray[np.float64]:
         """Current threshold on S per tag (NaN while the noise is not known yet)."""
@@ -134,7 +138,14 @@ class PulseDetector:
             lo = np.maximum(np.arange(old, old + n) + 1 - self.window, 0)
             s = csum[old + 1: old + n + 1] - csum[lo]
             full = (np.arange(old, old + n) + 1 - self.window) >= 0
-            exceed = (s > self.threshold()[None, :]) & full[:, None]
+            raw = (s > self.threshold()[None, :]) & full[:, None]
+            # a run ends only after a pulse width without an exceedance, so one pulse whose
+            # statistic dips under the threshold for a few frames stays one detection
+            ext = np.concatenate((self._ex_tail, raw)).astype(np.int32)
+            cs = np.concatenate((np.zeros((1, self.ntags), np.int32), np.cumsum(ext, axis=0)))
+            f = self.window
+            exceed = (cs[f:] - cs[:-f]) > 0
+            self._ex_tail = ext[ext.shape[0] - (f - 1):].astype(bool)
             for t in range(self.ntags):
                 out.extend(self._runs_of(t, exceed[:, t], s[:, t], old, hist, clip, peak))
         keep = max(0, hist.shape[0] - self._hist_len)

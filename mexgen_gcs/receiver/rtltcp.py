@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import socket
 import struct
+import time
 
 from mexgen_gcs.receiver.calibration import R820T_GAINS_TENTHS_DB
 from mexgen_gcs.receiver.convert import convert
@@ -33,6 +34,7 @@ SET_OFFSET_TUNING = 0x0A
 SET_GAIN_BY_INDEX = 0x0D
 
 TUNER_R820T = 5
+SETTLE_S = 0.25
 TUNER_NAMES = {1: "e4000", 2: "fc0012", 3: "fc0013", 4: "fc2580", 5: "r820t", 6: "r828d"}
 
 
@@ -97,6 +99,21 @@ class RtlTcpSource:
         self.send(SET_SAMPLE_RATE, round(tuning.rate_hz))
         self.send(SET_FREQ_CORRECTION, round(tuning.ppm))
         self.send(SET_FREQ, round(tuning.centre_hz))
+        self._settle()
+
+    def _settle(self) -> None:
+        """Discard what the server sent before the commands took effect (the old rate, gain
+        and frequency, and the tuner's settling): ``SETTLE_S`` of reading."""
+        end = time.monotonic() + SETTLE_S
+        while time.monotonic() < end:
+            try:
+                if not self._sock.recv(1 << 16):
+                    return
+            except TimeoutError:
+                return
+            except OSError as exc:
+                raise SourceError(f"{self.name}: {exc}") from None
+        self._leftover = b""
 
     def read(self, max_samples: int) -> IQBlock | None:
         want = max(2, 2 * max_samples - len(self._leftover))

@@ -63,3 +63,11 @@ def pulse_train(first_sample: int, n: int, rate_hz: float, noise_power_fs: float
     for power, offset, start, stop in tones:
         add_tone(x, first_sample, power, offset, rate_hz, start=start, stop=stop)
     return x
+
+
+def from_cu8(data: NDArray[np.uint8]) -> Complex:
+    """The inverse of `to_cu8` (up to the quantisation)."""
+    v = data.astype(np.float32)
+    v -= np.float32(127.5)
+    v *= np.float32(1.0 / 127.5)
+    return v.view(np.complex64)
