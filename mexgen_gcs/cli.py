@@ -67,6 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="UDP port for MAVLink on loopback (default 14540; 0 = any free port)")
     p.add_argument("--radio-port", type=_nonnegative_int, default=14600, metavar="PORT",
                    help="UDP port for radio datagrams on loopback (default 14600; 0 = any free)")
+    p.add_argument("--receiver", choices=("sim", "iq"), default="sim",
+                   help="sim: the simulator sends detections; iq: it serves IQ samples over "
+                        "rtl_tcp and the IQ receiver (docs/receiver.md) runs in the GCS "
+                        "(default sim)")
 
     p = sub.add_parser("fly", help="fly a real vehicle (or any simulator) through MAVSDK")
     p.add_argument("mission", metavar="MISSION.yaml")

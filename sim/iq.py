@@ -36,11 +36,11 @@ import numpy as np
 
 from mexgen_gcs.receiver import rtltcp, synth
 
-CAL_OFFSET_DB = 24.6
+CAL_OFFSET_DB = synth.SIM_CAL_OFFSET_DB
 NOISE_BELOW_SENSITIVITY_DB = 33.5
 NOISE_BUFFER_SAMPLES = 1 << 21
 DEFAULT_RATE_HZ = 2_048_000.0
-MAX_QUEUE_S = 2.0  # of samples waiting in the socket before blocks are dropped
+MAX_QUEUE_S = 8.0  # of samples waiting in the socket before blocks are dropped
 
 
 @dataclass(frozen=True, slots=True)

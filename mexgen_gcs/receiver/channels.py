@@ -93,7 +93,9 @@ class Channeliser:
         power = (sel.real * sel.real + sel.imag * sel.imag).reshape(n, ntags, self.bins)
         energy = power.sum(axis=2, dtype=np.float64) / m
         peak = power.argmax(axis=2).astype(np.int64) - (self.bins - 1) // 2
-        clip = np.asarray(c[: n * m].reshape(n, m).any(axis=1))
+        cc = c[: n * m]
+        clip = (np.asarray(cc.reshape(n, m).any(axis=1)) if cc.any()
+                else np.zeros(n, dtype=bool))
         return Frames(first, energy, peak, clip)
 
 

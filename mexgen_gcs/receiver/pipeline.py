@@ -2,7 +2,10 @@
 
 Time: the counter of samples since the stream began is anchored once to a clock (a recording's
 own start time, or the host clock when the first block arrives), and a pulse's time is
-``anchor + sample / rate``: host scheduling and buffering never move it. Dropped samples: a
+``anchor + sample / rate``: host scheduling and buffering never move it. A live stream's
+first block may come out of a backlog; during the first ``refine_s`` of samples the anchor
+moves earlier whenever a block arrives earlier than the anchor says it could (the earliest
+arrival bounds the latency), and never later. Dropped samples: a
 live source numbers no samples, so each block compares the counter with the clock; when the
 counter lags by more than ``gap_tolerance_s`` the missing samples are counted as dropped, the
 counter jumps over them (times stay right) and the detector restarts its sums. Sources that
@@ -68,7 +71,7 @@ class PulseReceiver:
     def __init__(self, plan: TuningPlan, config: DetectorConfig, calibration: Calibration, *,
                  period_s: float = 1.0, clock: Callable[[], float] | None = None,
                  start_unix: float | None = None, gap_tolerance_s: float = 0.5,
-                 status_period_s: float = 1.0) -> None:
+                 status_period_s: float = 1.0, refine_s: float = 10.0) -> None:
         if clock is None and start_unix is None:
             raise ValueError("need a clock or a start time")
         self.plan = plan
@@ -80,6 +83,7 @@ class PulseReceiver:
         self.clock = clock
         self.anchor_unix = start_unix
         self.gap_tolerance_s = gap_tolerance_s
+        self.refine_s = refine_s
         self.status_period_s = status_period_s
         self.counters = ReceiverCounters(per_tag=dict.fromkeys(self.tags, 0))
         self._heard = dict.fromkeys(self.tags, 0)
@@ -102,9 +106,14 @@ class PulseReceiver:
             self.anchor_unix = self.clock() - n / self.rate_hz
         lost = block.lost_before
         if self.clock is not None and self.anchor_unix is not None:
-            behind = (self.clock() - self.time_of(self._samples + n)) * self.rate_hz
-            if behind > self.gap_tolerance_s * self.rate_hz:
-                lost = max(lost, round(behind))
+            late_s = self.clock() - self.time_of(self._samples + n)
+            if late_s < 0.0 and self.counters.samples < self.refine_s * self.rate_hz:
+                # samples cannot arrive before they were taken: the first block came late
+                # (a backlog at start); move the anchor to the earliest arrival seen
+                self.anchor_unix += late_s
+                late_s = 0.0
+            if late_s > self.gap_tolerance_s:
+                lost = max(lost, round(late_s * self.rate_hz))
         if lost > 0:
             self._samples += lost
             self.counters.dropped_samples += lost

@@ -13,6 +13,10 @@ from numpy.typing import NDArray
 
 Complex = NDArray[np.complex64]
 
+SIM_CAL_OFFSET_DB = 24.6
+"""Calibration offset of the simulator's rtl_tcp dongle (``python -m sim --iq-server``):
+``dBm = dBFS - gain + SIM_CAL_OFFSET_DB``, as a field calibration would measure it."""
+
 
 def noise(n: int, power_fs: float, rng: np.random.Generator) -> Complex:
     """n samples of complex white Gaussian noise of total power ``power_fs``."""

@@ -65,7 +65,8 @@ def cmd_sitl(args: argparse.Namespace) -> int:
                           speedup=float(getattr(args, "speedup", 1.0) or 1.0),
                           method=getattr(args, "method", None),
                           log_dir=getattr(args, "log_dir", None) or "flights", runner=runner,
-                          time_scale=getattr(args, "time_scale", None))
+                          time_scale=getattr(args, "time_scale", None),
+                          receiver=getattr(args, "receiver", None) or "sim")
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         return 2

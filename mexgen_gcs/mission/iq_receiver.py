@@ -1,0 +1,89 @@
+"""The IQ receiver in the GCS process (`sitl --receiver iq`): a thread that connects to an
+rtl_tcp server, runs `mexgen_gcs.receiver` and sends its detections and heartbeats to the
+GCS's own radio port, as a separate receiver would.
+
+The receiver's sample clock is anchored to the mission clock (the vehicle's time), so it
+waits until that clock has synchronised with the vehicle before connecting. A failure ends
+the thread with a logged error; the GCS then sees a silent radio and its safety rules act.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from mexgen_gcs.io.clock import Clock
+from mexgen_gcs.receiver.output import UdpSender
+from mexgen_gcs.receiver.rtltcp import RtlTcpSource
+from mexgen_gcs.receiver.run import ReceiveOptions, RunSummary, run_receiver
+from mexgen_gcs.receiver.sources import SourceError
+from mexgen_gcs.receiver.tuning import TuningError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class IqReceiverSpec:
+    host: str
+    port: int
+    options: ReceiveOptions
+    hold_s: float = 0.0
+    """Hold each datagram this long (mission clock) before sending, so the GCS's telemetry
+    has caught up with a pulse's time when it arrives (a simulator run K times faster than
+    real time delivers telemetry K times later in its own time)."""
+
+
+class IqReceiverThread:
+    def __init__(self, mission: Any, spec: IqReceiverSpec, radio_url: str, clock: Clock,
+                 sync_timeout_s: float = 120.0) -> None:
+        self.mission = mission
+        self.spec = spec
+        self.radio_url = radio_url
+        self.clock = clock
+        self.sync_timeout_s = sync_timeout_s
+        self.stop = threading.Event()
+        self.summary: RunSummary | None = None
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="iq-receiver", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        self.stop.set()
+        self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        deadline = time.monotonic() + self.sync_timeout_s
+        while not self.stop.is_set() and not getattr(self.clock, "synced", True):
+            if time.monotonic() > deadline:
+                self.error = "the mission clock never synchronised; the IQ receiver did not start"
+                log.error(self.error)
+                return
+            time.sleep(0.05)
+        sender = UdpSender(self.radio_url)
+        held: collections.deque[tuple[float, bytes]] = collections.deque()
+
+        def send(data: bytes) -> None:
+            now = self.clock.now()
+            held.append((now + self.spec.hold_s, data))
+            while held and held[0][0] <= now:
+                sender.send(held.popleft()[1])
+
+        try:
+            source = RtlTcpSource(self.spec.host, self.spec.port)
+            self.summary = run_receiver(self.mission, source, self.spec.options,
+                                        send=send, clock=self.clock.now, stop=self.stop)
+            s = self.summary
+            log.info("IQ receiver: %d pulses, %d of %d samples dropped", len(s.pulses),
+                     s.dropped_samples, s.samples)
+        except (SourceError, TuningError, OSError) as exc:
+            if not self.stop.is_set():
+                self.error = f"IQ receiver: {exc}"
+                log.error(self.error)
+        finally:
+            sender.close()
