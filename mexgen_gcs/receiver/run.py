@@ -70,10 +70,12 @@ def prepare(mission: Any, source: IQSource, options: ReceiveOptions, *,
         rate_hz=fixed.rate_hz if fixed else options.rate_hz,
         centre_hz=fixed.centre_hz if fixed else None,
         ppm_in_software=not source.sets_ppm)
-    gain = fixed.gain_db if fixed else nearest_gain_db(options.gain_db, source.gain_table)
+    # a recording made here carries its gain and calibration; a raw file takes the options'
+    gain = nearest_gain_db(options.gain_db, source.gain_table)
     cal_offset = options.cal_offset_db
-    if isinstance(source, FileSource) and "mexgen:cal_offset_db" in source.meta:
-        cal_offset = float(source.meta["mexgen:cal_offset_db"])
+    if isinstance(source, FileSource):
+        gain = float(source.meta.get("mexgen:gain_db", gain))
+        cal_offset = float(source.meta.get("mexgen:cal_offset_db", cal_offset))
     source.tune(Tuning(plan.centre_hz, plan.rate_hz, gain, options.ppm))
     cal = Calibration(gain, cal_offset, source.name)
     config = DetectorConfig(pulse_width_s=mission.receiver.pulse_width_s,
