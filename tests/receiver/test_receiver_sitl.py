@@ -9,6 +9,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -29,7 +30,8 @@ def test_demo_flies_to_all_localised_with_the_iq_receiver(tmp_path):
     assert set(result.localised) == {"T1", "T2", "T3", "T4"}
     for tid, info in result.localised.items():
         assert info["error_m"] <= CLAIM_SLACK * info["radius_m"], (tid, info)
-    truth = [json.loads(line) for line in open(f"{result.log_dir}/{TRUTH_FILE}")]
+    text = (Path(result.log_dir) / TRUTH_FILE).read_text(encoding="utf-8")
+    truth = [json.loads(line) for line in text.splitlines()]
     end = next(r for r in truth if r["type"] == "end")
     assert end["iq"]["pulses"] > 100 and end["iq"]["dropped_samples"] == 0
     assert all(r["detected"] is None for r in truth if r["type"] == "pulse")
@@ -69,7 +71,8 @@ def test_receive_process_hears_the_simulator_process_over_rtl_tcp(tmp_path):
     # about one pulse per second per tag for 12 s (less the receiver's warm-up)
     assert all(9 <= len(v) <= 14 for v in per_tag.values()), {k: len(v) for k, v in
                                                                per_tag.items()}
-    truth = [json.loads(line) for line in open(tmp_path / TRUTH_FILE)]
+    text = (tmp_path / TRUTH_FILE).read_text(encoding="utf-8")
+    truth = [json.loads(line) for line in text.splitlines()]
     for tag, mine in per_tag.items():
         power = [r["power_db"] for r in truth if r["type"] == "pulse" and r["tag"] == tag]
         mean_true = sum(power) / len(power)
