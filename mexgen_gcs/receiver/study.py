@@ -166,7 +166,7 @@ def power_bias(snrs_db: Sequence[float], pulses_per_tag: int, seed: int = 2) -> 
 
 def report(quick: bool = False) -> str:
     n = 12 if quick else 50
-    pd = pd_curve(np.arange(-4.0, 8.1, 1.0), n)
+    pd = pd_curve([float(v) for v in np.arange(-4.0, 8.1, 1.0)], n)
     fa_s = 100.0 if quick else 1800.0
     fa = [false_alarms(fa_s), false_alarms(fa_s, cw=True)]
     pb = power_bias([4.0, 6.0, 10.0, 15.0, 20.0, 30.0], n)
