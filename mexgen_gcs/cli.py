@@ -79,6 +79,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"MAVSDK connection URL (default: {DEFAULT_CONNECT})")
     p.add_argument("--radio", default=None, metavar="udp://HOST:PORT",
                    help="where detections arrive (default: the mission's receiver.listen)")
+    p.add_argument("--iq-source", default=None, metavar="URL",
+                   help="also run the IQ receiver in this process on this source "
+                        "(rtltcp://HOST:PORT, rtlsdr://0, soapy://ARGS, file:...; see "
+                        "`receive`), sending to the radio port")
+    p.add_argument("--iq-gain", type=float, default=29.7, metavar="DB",
+                   help="with --iq-source: fixed tuner gain (default 29.7)")
+    p.add_argument("--iq-cal-offset", type=float, default=0.0, metavar="DB",
+                   help="with --iq-source: calibration offset, dBm = dBFS - gain + offset")
+    p.add_argument("--iq-ppm", type=float, default=0.0, metavar="PPM",
+                   help="with --iq-source: crystal correction")
 
     p = sub.add_parser("analyze", help="post-flight report and plots from flight logs "
                        "(several logs: a comparison)")

@@ -150,11 +150,12 @@ async def fly_mission(
     truth_path: Path | None = None,
     runner: MissionRunner | None = None,
     iq: IqReceiverSpec | None = None,
+    iq_send_url: str | None = None,
 ) -> MissionResult:
     """Fly one mission with real ports. The caller owns any simulator process. ``runner``
     flies the controller with something attached (the terminal UI); default: headless.
-    ``iq``: run the IQ receiver in this process, on that rtl_tcp server, sending to
-    ``radio_url``."""
+    ``iq``: run the IQ receiver in this process on that source, sending to ``iq_send_url``
+    (default ``radio_url``)."""
     rng = np.random.default_rng(seed)
     core = build_core(mission, rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now)
@@ -168,7 +169,9 @@ async def fly_mission(
                 rng=rng.spawn(1)[0], connect_url=connect_url, options=options,
                 truth=truth.positions if truth is not None else None)
             signals = _abort_on_signals(controller)
-            iq_thread = IqReceiverThread(mission, iq, radio_url, clock) if iq else None
+            iq_thread = (IqReceiverThread(mission, iq, iq_send_url or radio_url, clock,
+                                          covered=_pose_covers(controller))
+                         if iq else None)
             if iq_thread is not None:
                 iq_thread.start()
             try:
@@ -184,6 +187,14 @@ async def fly_mission(
                 await vehicle.close()
             result.log_dir = str(log_dir)
     return result
+
+
+def _pose_covers(controller: MissionController) -> Callable[[float], bool]:
+    """Whether the GCS's pose history reaches time t (read from the receiver's thread)."""
+    def covers(t: float) -> bool:
+        span = controller.ctx.poses.span
+        return span is not None and span[1] >= t
+    return covers
 
 
 def _abort_on_signals(controller: MissionController) -> list[signal.Signals]:
@@ -274,9 +285,9 @@ def run_sitl(
         iq_port = free_tcp_port()
         sim_args = [*(sim_args or []), "--iq-server", f"127.0.0.1:{iq_port}"]
         # the stream runs `speedup` times the wall clock: allow a wall second of scheduling
-        iq = IqReceiverSpec("127.0.0.1", iq_port, ReceiveOptions(
+        iq = IqReceiverSpec(f"rtltcp://127.0.0.1:{iq_port}", ReceiveOptions(
             cal_offset_db=SIM_CAL_OFFSET_DB, gap_tolerance_s=max(1.0, speedup)),
-            hold_s=0.5 + 0.5 * speedup)
+            hold_s=25.0)
     elif receiver != "sim":
         raise ConfigError(f"receiver {receiver!r}: expected sim or iq")
     proc = start_simulator(resolved, seed=seed, speedup=speedup, ports=ports, truth_dir=out,

@@ -92,6 +92,11 @@ class PulseReceiver:
         self._samples = 0  # stream samples so far, dropped ones included
 
     @property
+    def stream_samples(self) -> int:
+        """Samples of the stream so far, the lost ones included."""
+        return self._samples
+
+    @property
     def rate_hz(self) -> float:
         return self.plan.rate_hz
 

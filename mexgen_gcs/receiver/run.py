@@ -109,11 +109,14 @@ def run_receiver(mission: Any, source: IQSource, options: ReceiveOptions, *,
             block = source.read(block_samples)
             if block is None:
                 break
+            lost_before = rx.counters.dropped_samples
             events = rx.process(block)
             if options.record is not None:
                 if recorder is None:
                     recorder = SigmfWriter(options.record, block.fmt, rx.plan,
                                            gain_db=cal.gain_db, cal_offset_db=cal.cal_offset_db)
+                if rx.counters.dropped_samples > lost_before:
+                    recorder.gap(rx.stream_samples - block.samples.size)
                 recorder.write(block.raw, block.fmt, rx.anchor_unix)
             for ev in events:
                 if isinstance(ev, Pulse):

@@ -3,12 +3,13 @@
 ``NAME.sigmf-data`` holds the raw samples (cu8 from an RTL-SDR, ci16_le or cf32_le); the
 ``NAME.sigmf-meta`` JSON (SigMF 1.x core namespace) gives the datatype, rate, centre and start
 time, and one annotation per detected pulse (``core:sample_start``/``core:sample_count`` on
-the recording's sample counter, ``core:freq_lower_edge``/``core:freq_upper_edge`` of the
+the recording's samples, ``core:freq_lower_edge``/``core:freq_upper_edge`` of the
 tag's channel, ``core:label`` the tag id, and the calibrated power, SNR and noise floor in the
 ``mexgen:`` namespace). The metadata is rewritten atomically every ``flush_s`` seconds of
 samples and at the end, so a recording cut short by a crash still opens and replays up to its
-last sample. ``mexgen:start_unix`` is the anchor of the sample clock, so a replay times every
-pulse exactly as the live run did.
+last sample. Samples the source lost start a new capture whose ``core:global_index`` is the
+stream's counter there. ``mexgen:start_unix`` is the anchor of the sample clock, so a replay
+times every pulse exactly as the live run did.
 """
 
 from __future__ import annotations
@@ -54,6 +55,17 @@ class SigmfWriter:
             "mexgen:tags": [{"id": c.id, "freq_hz": c.freq_hz} for c in plan.channels],
         }
         self._start_unix: float | None = None
+        self._captures: list[tuple[int, int]] = [(0, 0)]  # (file sample, stream sample)
+
+    def gap(self, stream_sample: int) -> None:
+        """Samples were lost: the next sample written is ``stream_sample`` of the stream (a
+        new capture with ``core:global_index``, so a replay keeps the stream's counter)."""
+        self._captures.append((self._samples, stream_sample))
+
+    def _file_index(self, stream_sample: float) -> float:
+        start, glob = next((c for c in reversed(self._captures) if c[1] <= stream_sample),
+                           self._captures[0])
+        return stream_sample - glob + start
 
     def write(self, raw: bytes, fmt: str, start_unix: float | None) -> None:
         """Append raw samples (in the recording's format); ``start_unix`` anchors sample 0."""
@@ -73,7 +85,8 @@ class SigmfWriter:
         half = self.plan.channel_width_hz / 2.0
         width = max(1, round(p.width_s * self.plan.rate_hz)) if p.width_s else 1
         self._annotations.append({
-            "core:sample_start": max(0, round(p.sample)), "core:sample_count": width,
+            "core:sample_start": max(0, round(self._file_index(p.sample))),
+            "core:sample_count": width,
             "core:freq_lower_edge": ch.freq_hz - half, "core:freq_upper_edge": ch.freq_hz + half,
             "core:label": p.tag, "mexgen:t_unix": p.t_unix, "mexgen:rssi_dbm": p.rssi_dbm,
             "mexgen:snr_db": p.snr_db, "mexgen:noise_dbm": p.noise_dbm,
@@ -81,12 +94,14 @@ class SigmfWriter:
 
     def write_meta(self) -> None:
         glob = dict(self._global, **{"mexgen:sample_count": self._samples})
-        capture: dict[str, Any] = {"core:sample_start": 0, "core:frequency": self.plan.centre_hz}
+        captures: list[dict[str, Any]] = [
+            {"core:sample_start": start, "core:global_index": glob_index,
+             "core:frequency": self.plan.centre_hz} for start, glob_index in self._captures]
         if self._start_unix is not None:
             glob["mexgen:start_unix"] = self._start_unix
-            capture["core:datetime"] = datetime.fromtimestamp(self._start_unix, UTC).strftime(
-                "%Y-%m-%dT%H:%M:%S.%fZ")
-        meta = {"global": glob, "captures": [capture],
+            captures[0]["core:datetime"] = datetime.fromtimestamp(
+                self._start_unix, UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+        meta = {"global": glob, "captures": captures,
                 "annotations": sorted(self._annotations, key=lambda a: a["core:sample_start"])}
         tmp = self.meta_path.with_suffix(".sigmf-meta.tmp")
         tmp.write_text(json.dumps(meta, indent=1), encoding="utf-8")

@@ -88,6 +88,8 @@ class FileSource:
     sets_ppm: bool = False
     gain_table: tuple[int, ...] | None = None
     damage: str | None = None
+    gaps: list[tuple[int, int]] = field(default_factory=list)
+    """(file sample, samples lost before it): captures whose ``core:global_index`` jumps."""
     _fh: Any = None
     _read: int = 0
 
@@ -115,6 +117,13 @@ class FileSource:
         if self.damage is not None and self._fh is None:
             return None
         size = SAMPLE_BYTES[self.fmt]
+        lost = 0
+        upcoming = [g for g in self.gaps if g[0] >= self._read]
+        if upcoming and upcoming[0][0] == self._read:
+            lost = upcoming[0][1]
+            upcoming = upcoming[1:]
+        if upcoming:  # stop at the next gap
+            max_samples = min(max_samples, upcoming[0][0] - self._read)
         raw = self._fh.read(max_samples * size)
         if not raw:
             self._check_end()
@@ -140,7 +149,7 @@ class FileSource:
         self._read += samples.size
         if samples.size == 0:
             return None
-        return IQBlock(samples, clipped, raw, self.fmt)
+        return IQBlock(samples, clipped, raw, self.fmt, lost_before=lost)
 
     def _check_end(self) -> None:
         if self.expected_samples is not None and self._read < self.expected_samples \
@@ -195,7 +204,14 @@ def open_sigmf(path: str | os.PathLike[str]) -> FileSource:
         raise SourceError(f"{meta_path}: needs global core:sample_rate and the first capture's "
                           "core:frequency (numbers, Hz)")
     count = glob.get("mexgen:sample_count")
+    gaps = []
+    lost_so_far = 0
+    for cap in captures[1:]:
+        start, index = cap.get("core:sample_start"), cap.get("core:global_index")
+        if isinstance(start, int) and isinstance(index, int) and index - start > lost_so_far:
+            gaps.append((start, index - start - lost_so_far))
+            lost_so_far = index - start
     src = FileSource(data_path, fmts[dtype], float(rate), float(centre), meta=glob,
                      expected_samples=int(count) if isinstance(count, int) else None,
-                     name=f"file:{meta_path}")
+                     name=f"file:{meta_path}", gaps=gaps)
     return src

@@ -82,3 +82,24 @@ def test_receive_and_sitl_receiver_are_on_the_command_line():
     handler, why = resolve_handler("receive")
     assert handler is not None, why
     assert build_parser().parse_args(["sitl", "m.yaml", "--receiver", "iq"]).receiver == "iq"
+
+
+def test_fly_takes_an_iq_source():
+    args = build_parser().parse_args(["fly", "m.yaml", "--iq-source", "rtltcp://10.0.0.2:1234",
+                                      "--iq-cal-offset", "-3.5"])
+    assert args.iq_source == "rtltcp://10.0.0.2:1234" and args.iq_cal_offset == -3.5
+
+
+def test_hardware_sources_say_what_is_missing():
+    import importlib.util
+
+    import pytest
+
+    from mexgen_gcs.receiver.sources import SourceError
+    from mexgen_gcs.receiver.urls import open_source
+
+    if importlib.util.find_spec("SoapySDR") is None:
+        with pytest.raises(SourceError, match="SoapySDR's Python bindings are not installed"):
+            open_source("soapy://driver=rtlsdr")
+    with pytest.raises(SourceError, match=r"rtlsdr://7: (pyrtlsdr is not installed|cannot open)"):
+        open_source("rtlsdr://7")  # no dongle here (or no pyrtlsdr): a message, not a crash
