@@ -35,7 +35,7 @@ class IqReceiverSpec:
     """A source URL of `mexgen_gcs.receiver.urls` (e.g. ``rtltcp://127.0.0.1:1234``)."""
     options: ReceiveOptions
     hold_s: float = 0.0
-    """Hold each datagram at most this long (mission clock) until the GCS's telemetry covers
+    """Hold each detection (heartbeats go at once) at most this long (mission clock) until the GCS's telemetry covers
     its time (``covered``), so the pulse can be posed when it arrives (a simulator run K times
     faster than real time delivers telemetry K times later in its own time)."""
 
@@ -81,7 +81,10 @@ class IqReceiverThread:
 
         def send(data: bytes) -> None:
             now = self.clock.now()
-            held.append((now + self.spec.hold_s, data))
+            if b'"heartbeat"' in data:
+                sender.send(data)  # the receiver is alive now, whatever it holds
+            else:
+                held.append((now + self.spec.hold_s, data))
             while held and (held[0][0] <= now or self._covers(held[0][1])):
                 sender.send(held.popleft()[1])
 

@@ -23,6 +23,7 @@ pytestmark = pytest.mark.e2e
 CLAIM_SLACK = 1.5  # as tests/mission/test_sitl_e2e.py
 
 
+@pytest.mark.timeout(1200)  # about 60 s on an idle machine; minutes on a crowded one
 def test_demo_flies_to_all_localised_with_the_iq_receiver(tmp_path):
     result = run_sitl(DEMO, seed=1, speedup=10.0, ports=SitlPorts.free(), log_dir=tmp_path,
                       receiver="iq")
