@@ -35,9 +35,10 @@ class IqReceiverSpec:
     """A source URL of `mexgen_gcs.receiver.urls` (e.g. ``rtltcp://127.0.0.1:1234``)."""
     options: ReceiveOptions
     hold_s: float = 0.0
-    """Hold each detection (heartbeats go at once) at most this long (mission clock) until the GCS's telemetry covers
-    its time (``covered``), so the pulse can be posed when it arrives (a simulator run K times
-    faster than real time delivers telemetry K times later in its own time)."""
+    """Hold each detection (heartbeats go at once) at most this long (mission clock) until
+    the GCS's telemetry covers its time (``covered``), so the pulse can be posed when it
+    arrives (a simulator run K times faster than real time delivers telemetry K times later
+    in its own time)."""
 
 
 class IqReceiverThread:

@@ -126,8 +126,9 @@ def test_receive_refuses_a_tag_outside_the_recording(raw_file, tmp_path):
 
 
 class _DroppingSource:
-    """A live source (fake: a raw file read in blocks) that loses blocks 20-34 (0.75 s), with the clock
-    the samples' own time plus 10 ms; the unit under test is the recorder's gap handling."""
+    """A live source (fake: a raw file read in blocks) that loses blocks 20-34 (0.75 s), with
+    the clock the samples' own time plus 10 ms; the unit under test is the recorder's gap
+    handling."""
 
     live = True
     sets_ppm = False
