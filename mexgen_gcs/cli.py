@@ -38,6 +38,7 @@ HANDLERS: dict[str, str] = {
     "replay": "mexgen_gcs.analysis.cli:cmd_replay",
     "experiment": "mexgen_gcs.experiments.cli:cmd_experiment",
     "bench": "mexgen_gcs.bench.cli:cmd_bench",
+    "receive": "mexgen_gcs.receiver.cli:cmd_receive",
 }
 
 
@@ -85,6 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="UDP port for MAVLink on loopback (default 14540; 0 = any free port)")
     p.add_argument("--radio-port", type=_nonnegative_int, default=14600, metavar="PORT",
                    help="UDP port for radio datagrams on loopback (default 14600; 0 = any free)")
+    p.add_argument("--receiver", choices=("sim", "iq"), default="sim",
+                   help="sim: the simulator sends detections; iq: it serves IQ samples over "
+                        "rtl_tcp and the IQ receiver (docs/receiver.md) runs in the GCS "
+                        "(default sim)")
 
     p = sub.add_parser("fly", help="fly a real vehicle (or any simulator) through MAVSDK")
     p.add_argument("mission", metavar="MISSION.yaml")
@@ -93,6 +98,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"MAVSDK connection URL (default: {DEFAULT_CONNECT})")
     p.add_argument("--radio", default=None, metavar="udp://HOST:PORT",
                    help="where detections arrive (default: the mission's receiver.listen)")
+    p.add_argument("--iq-source", default=None, metavar="URL",
+                   help="also run the IQ receiver in this process on this source "
+                        "(rtltcp://HOST:PORT, rtlsdr://0, soapy://ARGS, file:...; see "
+                        "`receive`), sending to the radio port")
+    p.add_argument("--iq-gain", type=float, default=29.7, metavar="DB",
+                   help="with --iq-source: fixed tuner gain (default 29.7)")
+    p.add_argument("--iq-cal-offset", type=float, default=0.0, metavar="DB",
+                   help="with --iq-source: calibration offset, dBm = dBFS - gain + offset")
+    p.add_argument("--iq-ppm", type=float, default=0.0, metavar="PPM",
+                   help="with --iq-source: crystal correction")
 
     p = sub.add_parser("analyze", help="post-flight report and plots from flight logs "
                        "(several logs: a comparison)")
@@ -154,9 +169,38 @@ def build_parser() -> argparse.ArgumentParser:
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")
 
-    p = sub.add_parser("bench", help="benchmarks: filter or planner (median/min/max), or "
-                                     "experiment (runs per hour, the full Table II projected)")
-    p.add_argument("what", choices=("filter", "planner", "experiment"))
+    p = sub.add_parser("receive", help="listen for the mission's tags with a radio (RTL-SDR, "
+                       "rtl_tcp, SoapySDR) or a recording and send detections to the GCS")
+    p.add_argument("mission", metavar="MISSION.yaml")
+    p.add_argument("--source", required=True, metavar="URL",
+                   help="rtltcp://HOST:PORT, rtlsdr://INDEX, soapy://ARGS, "
+                        "file:NAME.sigmf-meta or file:NAME.cu8?rate=HZ&centre=HZ")
+    p.add_argument("--to", default=None, metavar="udp://HOST:PORT",
+                   help="where to send detections (default: 127.0.0.1 at the port of the "
+                        "mission's receiver.listen)")
+    p.add_argument("--record", default=None, metavar="NAME.sigmf-data",
+                   help="record the samples and the pulses (SigMF)")
+    p.add_argument("--gain", type=float, default=29.7, metavar="DB",
+                   help="fixed tuner gain, dB (the nearest the device has; AGC is off; "
+                        "default 29.7)")
+    p.add_argument("--cal-offset", type=float, default=0.0, metavar="DB",
+                   help="calibration offset: dBm = dBFS - gain + offset (docs/receiver.md)")
+    p.add_argument("--ppm", type=float, default=0.0, help="crystal correction, ppm")
+    p.add_argument("--pfa", type=_probability, default=1e-3, metavar="P",
+                   help="false alarms per tag and second (default 1e-3)")
+    p.add_argument("--channel-width", type=_positive_float, default=3000.0, metavar="HZ",
+                   help="each tag's channel, Hz: its frequency uncertainty (default 3000)")
+    p.add_argument("--rate", type=_positive_float, default=None, metavar="HZ",
+                   help="sample rate (default: the smallest that covers the tags)")
+    p.add_argument("--duration", type=_positive_float, default=None, metavar="S",
+                   help="stop after S seconds of samples")
+    p.add_argument("--realtime", action="store_true",
+                   help="replay a file at its own pace, timed from now (to feed a live GCS)")
+
+    p = sub.add_parser("bench", help="benchmarks: filter or planner (median/min/max), "
+                                     "experiment (runs per hour, the full Table II projected), "
+                                     "or receiver (real-time factor at 2.4 Msps, 4 tags)")
+    p.add_argument("what", choices=("filter", "planner", "experiment", "receiver"))
     p.add_argument("--json", action="store_true", help="print JSON")
     p.add_argument("--iterations", type=_positive_int, default=None, metavar="N",
                    help="filter, planner: timed calls")
@@ -206,6 +250,16 @@ def _positive_float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number, found {text!r}") from None
     if not value > 0.0 or value == float("inf"):
         raise argparse.ArgumentTypeError(f"expected a positive number, found {text!r}")
+    return value
+
+
+def _probability(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, found {text!r}") from None
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"expected 0 < P < 1, found {text!r}")
     return value
 
 

@@ -21,6 +21,7 @@ from mexgen_gcs.config.area_files import AreaFileError, read_area_file
 from mexgen_gcs.errors import ConfigError
 from sim.clock import SYSTEM_TIME_SOURCES
 from sim.faults import KINDS, parse_fault_flag
+from sim.iq import IqOptions
 from sim.params import parse_param_flag
 from sim.rider import RadioRider, RiderOptions
 from sim.runner import Simulation
@@ -79,6 +80,15 @@ def _param(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def _cw(text: str) -> tuple[float, float]:
+    try:
+        offset, dbm = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected OFFSET_HZ,DBM, e.g. 1000,-70; got {text!r}") \
+            from None
+    return offset, dbm
+
+
 def _sysid(text: str) -> int:
     if not text.isdigit() or not 1 <= int(text) <= 255:
         raise argparse.ArgumentTypeError(f"expected a system id 1..255, got {text!r}")
@@ -131,6 +141,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-radios", action="store_true",
                    help="simulate the vehicle only, no tags and no datagrams (e.g. when "
                         "radios ride on it from another process with --radios-only)")
+    g = p.add_argument_group("the radio as IQ samples (an rtl_tcp server)")
+    g.add_argument("--iq-server", type=parse_address, default=None, metavar="HOST:PORT",
+                   help="serve the radio as 8-bit IQ over the rtl_tcp protocol here (port 0: "
+                        "any free port, printed as iq=HOST:PORT in the ready line) instead of "
+                        "sending detection datagrams; a receiver (mexgen-gcs receive --source "
+                        "rtltcp://HOST:PORT --cal-offset 24.6) detects the pulses")
+    g.add_argument("--iq-cw", type=_cw, default=None, metavar="OFFSET_HZ,DBM",
+                   help="add a CW interferer OFFSET_HZ from the first tag at DBM")
     g = p.add_argument_group("radios riding on any MAVLink vehicle")
     g.add_argument("--radios-only", action="store_true",
                    help="no simulated vehicle: run tags, pulses and detections on the clock and "
@@ -155,6 +173,14 @@ def _radios_only(mission: Mission, args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         print(f"sim: cannot start: {exc}", file=sys.stderr)
         return 2
+
+
+def _iq_options(args: argparse.Namespace) -> IqOptions | None:
+    if args.iq_server is None:
+        return None
+    cw = args.iq_cw
+    return IqOptions(host=args.iq_server[0], port=args.iq_server[1],
+                     cw_offset_hz=cw[0] if cw else None, cw_dbm=cw[1] if cw else -70.0)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -186,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         radio=args.radio, listen=args.listen, truth_dir=args.truth_dir, sysid=args.sysid,
         extra_faults=tuple(args.fault), keep_running=args.keep_running,
         radios=not args.no_radios, params=tuple(args.param), fence_latlon_deg=fence,
-        radio_format=args.radio_format)
+        radio_format=args.radio_format, iq=_iq_options(args))
     try:
         sim = Simulation(mission, options)
     except (OSError, ValueError) as exc:

@@ -77,12 +77,14 @@ class RadioSim:
         rng: np.random.Generator,
         truth_step_s: float = 1.0,
         world: TrueRadio | None = None,
+        pulse_sink: Callable[[int, float, float], None] | None = None,
     ) -> None:
         if not tags or not pulse_period_s > 0.0:
             raise ValueError("need at least one tag and pulse_period_s > 0")
         self.tags = tags
         self.radio = radio
         self.world = world
+        self.pulse_sink = pulse_sink
         self.period_s = pulse_period_s
         self.faults = faults
         self.truth = truth
@@ -124,7 +126,7 @@ class RadioSim:
         if now_s + 1e-9 >= self._next_heartbeat_s or wall_s - self._last_heartbeat_wall >= 1.0:
             self._next_heartbeat_s = math.floor(now_s + 1e-9) + 1.0
             self._last_heartbeat_wall = wall_s
-            if not self._silent():
+            if not self._silent() and self.pulse_sink is None:
                 out.append(encode_heartbeat(self._t_sent(now_s), self.listening))
                 self.stats["heartbeats"] += 1
         return out
@@ -163,6 +165,9 @@ class RadioSim:
                 + sum(f.ppm * 1e-6 * (t - f.at_s) for f in self.faults.active("clock_drift")))
 
     def _pulse(self, i: int, t: float, pose: ReceiverPose) -> list[bytes]:
+        if self.pulse_sink is not None:
+            self._iq_pulse(i, t, pose)
+            return []
         tag = self.tags[i]
         xy = self._position(tag, t)[:2]
         rx = np.array([pose.east_m, pose.north_m, pose.up_m])
@@ -201,6 +206,32 @@ class RadioSim:
         for _ in range(n_clutter):
             out.extend(self._clutter(i, t, pose, "model"))
         return out
+
+    def _iq_pulse(self, i: int, t: float, pose: ReceiverPose) -> None:
+        """IQ mode: the pulse's noiseless power goes to the IQ stream (``sim.iq``), whose
+        receiver decides what is heard; the truth records the pulse (``detected`` unknown)."""
+        tag = self.tags[i]
+        xy = self._position(tag, t)[:2]
+        rx = np.array([pose.east_m, pose.north_m, pose.up_m])
+        yaw = math.radians(pose.yaw_deg)
+        if self.world is None:
+            power = float(self.radio.power_db(xy, rx, yaw))
+        else:
+            p, _, _ = self.world.pulse(np.array(i), xy, rx, yaw, self._rng_detect)
+            power = float(p)
+        silent = self._silent()
+        if not silent:
+            assert self.pulse_sink is not None
+            self.pulse_sink(i, t, power)
+        self.stats["pulses"] += 1
+        self.truth.write(
+            self.unix_of(t), "pulse", tag=tag.id, freq_hz=tag.freq_hz,
+            x_m=round(float(xy[0]), 3), y_m=round(float(xy[1]), 3),
+            rx_enu_m=[round(pose.east_m, 3), round(pose.north_m, 3), round(pose.up_m, 3)],
+            rx_yaw_deg=round(pose.yaw_deg, 3),
+            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], 0.0]))), 3),
+            power_db=power, detected=None, rssi_db=None, dropped=False, sent=not silent,
+            t_sent=None)
 
     def _clutter(self, i: int, t: float, pose: ReceiverPose, source: str) -> list[bytes]:
         tag = self.tags[i]

@@ -28,6 +28,7 @@ from sim.autopilot import Autopilot
 from sim.clock import SimClock
 from sim.faults import Fault, FaultSchedule
 from sim.fence import Fence
+from sim.iq import IqRadio, IqServer
 from sim.params import ParamTable
 from sim.radios import RadioSim, ReceiverPose, describe_world, reality_world
 from sim.scenario import (
@@ -88,10 +89,20 @@ class Simulation:
                                       on_command=self._command_received)
         if options.fence_latlon_deg:
             self.vehicle.preload_fence(list(options.fence_latlon_deg))
+        self.iq: IqRadio | None = None
+        self.iq_server: IqServer | None = None
+        if options.iq is not None:
+            # its own stream of draws, so the tags, pulses and vehicle of a seed stay the same
+            iq_rng = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(5)[4])
+            self.iq = IqRadio([float(t.freq_hz) for t in mission.tags],
+                              mission.receiver.pulse_width_s, mission.radio.sensitivity_db,
+                              mission.radio.noise_std_db, options.iq, iq_rng)
+            self.iq_server = IqServer(self.iq, lambda: self.clock.sim_s)
         self.radio = RadioSim(build_tags(mission, world_rng), mission.radio_model(),
                               mission.receiver.pulse_period_s, self.faults, self.truth,
                               self.clock.unix_of, radio_rng,
-                              world=reality_world(mission, self.seed))
+                              world=reality_world(mission, self.seed),
+                              pulse_sink=self.iq.pulse if self.iq is not None else None)
         self._radio_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._radio_sock.setblocking(False)
         self._tunnel = (TunnelEncoder(options.sysid)
@@ -123,6 +134,14 @@ class Simulation:
             lambda: _MavlinkProtocol(self), local_addr=self.options.listen,
             family=socket.AF_INET)
         self._mav_transport = transport
+        iq_text = ""
+        iq_srv: asyncio.Server | None = None
+        if self.iq_server is not None and self.options.iq is not None:
+            server = self.iq_server
+            iq_srv = await loop.create_server(lambda: server, self.options.iq.host,
+                                              self.options.iq.port)
+            host, port = iq_srv.sockets[0].getsockname()[:2]
+            iq_text = f" iq={host}:{port}"
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, self._stop.set)
         listen = transport.get_extra_info("sockname")
@@ -131,7 +150,7 @@ class Simulation:
         gcs = f" gcs={o.gcs[0]}:{o.gcs[1]}" if o.gcs else ""
         print(f"sim ready mavlink={o.mavlink[0]}:{o.mavlink[1]} radio={o.radio[0]}:{o.radio[1]}"
               f" listen={listen[0]}:{listen[1]} sysid={o.sysid}{gcs}"
-              f" speedup={self.clock.speedup:g} seed={self.seed}", flush=True)
+              f" speedup={self.clock.speedup:g} seed={self.seed}{iq_text}", flush=True)
         try:
             while not self._stop.is_set():
                 self.tick()
@@ -145,8 +164,11 @@ class Simulation:
             self.truth.write(self.clock.unix(), "end", sim_s=round(self.clock.sim_s, 3),
                              reason="signal" if self._stop.is_set() else "landed",
                              radio=self.radio.stats, mavlink=self.vehicle.stats,
+                             **({"iq": self.iq.stats} if self.iq is not None else {}),
                              **self._takeover_counts())
             self.truth.close()
+            if iq_srv is not None:
+                iq_srv.close()
             transport.close()
             self._radio_sock.close()
         return 0
@@ -174,6 +196,8 @@ class Simulation:
             self.clock.sim_s = t_next
             self._events(wall)
         self._events(wall)
+        if self.iq_server is not None:
+            self.iq_server.pump()
         self.vehicle.tick()
 
     def _events(self, wall: float) -> None:

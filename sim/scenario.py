@@ -14,6 +14,7 @@ import numpy as np
 
 from mexgen_gcs.config import Mission
 from sim.faults import Fault, fault_from_config
+from sim.iq import IqOptions
 from sim.kinematics import Limits
 from sim.radios import TagTruth
 
@@ -43,6 +44,8 @@ class SimOptions:
     """An inclusion fence already on board at the start (``--fence FILE``)."""
     radio_format: str = "wire-v1"
     """wire-v1, or mavlink-tunnel (TagTracker's TUNNEL PulseInfo_t, sim.tunnel_radio)."""
+    iq: IqOptions | None = None
+    """Serve the radio as IQ over rtl_tcp (``sim.iq``) instead of detection datagrams."""
 
 
 def seed_of(mission: Mission, options: SimOptions) -> int:

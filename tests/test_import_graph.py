@@ -141,20 +141,22 @@ LAYERS: dict[str, set[str]] = {
     "core": {"errors"},
     "config": {"core", "errors"},
     "io": {"config", "core", "errors", "package"},
-    "mission": {"io", "config", "core", "errors", "package"},
-    "ui": {"mission", "io", "config", "core", "errors", "package"},
+    "receiver": {"io", "config", "core", "errors", "package"},
+    "mission": {"receiver", "io", "config", "core", "errors", "package"},
+    "ui": {"mission", "receiver", "io", "config", "core", "errors", "package"},
     # analysis and experiments use what a flight decides with (core, config, io), never the
     # asyncio flight itself
     "analysis": {"io", "config", "core", "errors", "package"},
     "experiments": {"config", "core", "errors", "package"},
-    "bench": {"experiments", "core", "config", "errors", "package"},
+    "bench": {"experiments", "receiver", "core", "config", "errors", "package"},
     "cli": {"config", "core", "errors", "package"},  # the other handlers: looked up by name
     "__main__": {"cli"},
 }
 #: what sim (a separate program) may use of mexgen_gcs
 SIM_MAY_IMPORT = ("mexgen_gcs.core", "mexgen_gcs.config", "mexgen_gcs.errors",
                   "mexgen_gcs.io.wire", "mexgen_gcs.io.jsonl", "mexgen_gcs.io.records",
-                  "mexgen_gcs.io.truthfile", "mexgen_gcs.io.pulseinfo")
+                  "mexgen_gcs.io.truthfile", "mexgen_gcs.io.pulseinfo", "mexgen_gcs.receiver.synth",
+                  "mexgen_gcs.receiver.rtltcp")
 #: (importer, imported) that break the layers, being removed elsewhere; emptied by the lead
 KNOWN_LAYER_BREAKS: frozenset[tuple[str, str]] = frozenset()
 

@@ -1,4 +1,4 @@
-"""`mexgen-gcs bench filter|planner|experiment`: dispatch to the named benchmark."""
+"""`mexgen-gcs bench filter|planner|experiment|receiver`: dispatch to the named benchmark."""
 
 from __future__ import annotations
 
@@ -17,6 +17,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
         starts = getattr(args, "starts", None)
         return bench_experiment.main(argv + (["--starts", str(starts)] if starts else []))
+    if what == "receiver":
+        from mexgen_gcs.bench import receiver as bench_receiver
+
+        return bench_receiver.main(argv)
     iterations = getattr(args, "iterations", None)
     if iterations:
         argv += ["--iterations", str(iterations)]
@@ -28,5 +32,5 @@ def cmd_bench(args: argparse.Namespace) -> int:
         from mexgen_gcs.bench import planner as bench_planner
 
         return int(bench_planner.main(argv) or 0)
-    print(f"unknown benchmark {what!r}; expected filter, planner or experiment")
+    print(f"unknown benchmark {what!r}; expected filter, planner, experiment or receiver")
     return 2

@@ -278,6 +278,9 @@ class Receiver(Section):
         "(docs/wire-format.md); mavlink-tunnel = MAVLink TUNNEL messages carrying "
         "TagTracker/UAV-RT PulseInfo_t (docs/receiver-interop.md).",
     )
+    pulse_width_s: Float = Field(
+        0.02, gt=0.0, le=1.0,
+        description="Tag pulse width, seconds: the IQ receiver's detector is matched to it.")
     max_clock_skew_s: Float = Field(
         30.0, gt=0.0, le=86_400.0,
         description="Detections whose timestamp, on the mission clock after the receiver's "

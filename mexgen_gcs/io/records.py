@@ -426,7 +426,8 @@ class Pulse(Record):
     rx_yaw_deg: float = f("Receiver heading, compass degrees.", "deg")
     distance_m: float = f("Receiver-to-tag distance.", "m", ge=0.0)
     power_db: float = f("True received power (before noise).", "dB")
-    detected: bool = f("The receiver detected the pulse.")
+    detected: bool | None = f("The receiver detected the pulse; null when the simulator "
+                              "serves IQ (`--iq-server`) and the IQ receiver decides.")
     rssi_db: Num = f("Measured RSSI, if detected.", "dB")
     dropped: bool = f("Dropped by a detection_dropout fault.")
     sent: bool = f("A datagram was sent.")

@@ -43,7 +43,10 @@ from mexgen_gcs.io.truthfile import TRUTH_FILE, TagPositions, read_truth_file
 from mexgen_gcs.io.tunnel import TunnelReceiver
 from mexgen_gcs.io.vehicle import MavsdkVehicle
 from mexgen_gcs.mission.controller import ControllerOptions, MissionController, MissionResult
+from mexgen_gcs.mission.iq_receiver import IqReceiverSpec, IqReceiverThread
 from mexgen_gcs.mission.state import EndReason
+from mexgen_gcs.receiver.run import ReceiveOptions
+from mexgen_gcs.receiver.synth import SIM_CAL_OFFSET_DB
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +86,19 @@ def free_udp_port() -> int:
                 continue
             return port
     raise OSError(f"no free UDP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
+
+
+def free_tcp_port() -> int:
+    """A TCP port on loopback that was free a moment ago, outside the ephemeral range."""
+    for _ in range(500):
+        port = int(_PORT_RNG.integers(*_FREE_PORTS))
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise OSError(f"no free TCP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
 
 
 def apply_overrides(mission: Mission, overrides: Mapping[str, Any] | None) -> Mission:
@@ -129,9 +145,13 @@ async def fly_mission(
     options: ControllerOptions | None = None,
     truth_path: Path | None = None,
     runner: MissionRunner | None = None,
+    iq: IqReceiverSpec | None = None,
+    iq_send_url: str | None = None,
 ) -> MissionResult:
     """Fly one mission with real ports. The caller owns any simulator process. ``runner``
-    flies the controller with something attached (the terminal UI); default: headless."""
+    flies the controller with something attached (the terminal UI); default: headless.
+    ``iq``: run the IQ receiver in this process on that source, sending to ``iq_send_url``
+    (default ``radio_url``)."""
     rng = np.random.default_rng(seed)
     core = mission.mission_core(rng.spawn(1)[0])
     policy = RadioPolicy.from_mission(mission, clock=clock.now,
@@ -147,6 +167,11 @@ async def fly_mission(
                 truth=truth.positions if truth is not None else None)
             stops = StopSignals(controller, asyncio.current_task())
             signals = stops.install()
+            iq_thread = (IqReceiverThread(mission, iq, iq_send_url or radio_url, clock,
+                                          covered=_pose_covers(controller))
+                         if iq else None)
+            if iq_thread is not None:
+                iq_thread.start()
             try:
                 if runner is not None:
                     result = await runner(controller)
@@ -162,9 +187,19 @@ async def fly_mission(
             finally:
                 for sig in signals:
                     asyncio.get_running_loop().remove_signal_handler(sig)
+                if iq_thread is not None:
+                    await asyncio.to_thread(iq_thread.close)
                 await vehicle.close()
             result.log_dir = str(log_dir)
     return result
+
+
+def _pose_covers(controller: MissionController) -> Callable[[float], bool]:
+    """Whether the GCS's pose history reaches time t (read from the receiver's thread)."""
+    def covers(t: float) -> bool:
+        span = controller.ctx.poses.span
+        return span is not None and span[1] >= t
+    return covers
 
 
 def make_receiver(mission: Mission, radio_url: str, policy: RadioPolicy) -> RadioReceiver:
@@ -308,14 +343,16 @@ def run_sitl(
     options: ControllerOptions | None = None,
     runner: MissionRunner | None = None,
     time_scale: float | None = None,
+    receiver: str = "sim",
 ) -> MissionResult:
     """Fly a mission against the built-in simulator; the scripted-SITL API.
 
     ``mission``: a path or a loaded Mission. ``overrides``: dotted keys, e.g.
     ``{"planner.method": "pim", "sim.seed": 3}``. ``ports``: defaults to the contract ports;
     ``SitlPorts.free()`` for parallel runs. The mission runs on the simulator's clock, measured
-    from its SYSTEM_TIME (``time_scale``: a known rate instead). Raises ConfigError on a bad
-    mission (nothing is started).
+    from its SYSTEM_TIME (``time_scale``: a known rate instead). ``receiver``: ``sim`` (the
+    simulator sends detections) or ``iq`` (the simulator serves IQ over rtl_tcp and the IQ
+    receiver runs in this process). Raises ConfigError on a bad mission (nothing is started).
     """
     m = load_mission(mission) if isinstance(mission, str | os.PathLike) else mission
     if method is not None:
@@ -326,6 +363,19 @@ def run_sitl(
     resolved = out / "mission.yaml"
     resolved.write_text(yaml.safe_dump(dump_resolved(m), sort_keys=False), encoding="utf-8")
     ports = ports or SitlPorts()
+    iq = None
+    if receiver == "iq":
+        iq_port = free_tcp_port()
+        sim_args = [*(sim_args or []), "--iq-server", f"127.0.0.1:{iq_port}"]
+        # The stream's samples are the simulator's time exactly; the mission clock is an
+        # estimate of it that wanders by seconds on a loaded machine (its residual is logged),
+        # so a gap is only declared when the counter lags that clock by 30 s: the simulator
+        # drops samples only when 8 s of them wait in the socket.
+        iq = IqReceiverSpec(f"rtltcp://127.0.0.1:{iq_port}", ReceiveOptions(
+            cal_offset_db=SIM_CAL_OFFSET_DB, gap_tolerance_s=30.0),
+            hold_s=25.0)
+    elif receiver != "sim":
+        raise ConfigError(f"receiver {receiver!r}: expected sim or iq")
     clock: Clock = VehicleClock(fixed_rate=time_scale)
     proc: subprocess.Popen[str] | None = None
     result: MissionResult | None = None
@@ -335,7 +385,8 @@ def run_sitl(
         result = asyncio.run(fly_mission(
             m, connect_url=f"udpin://127.0.0.1:{ports.mavlink}",
             radio_url=f"udp://127.0.0.1:{ports.radio}", clock=clock, log_dir=out,
-            method=chosen, seed=seed, options=options, truth_path=out / TRUTH_FILE, runner=runner))
+            method=chosen, seed=seed, options=options, truth_path=out / TRUTH_FILE, runner=runner,
+            iq=iq))
     finally:
         if proc is not None:
             if result is not None and result.end_reason == EndReason.SIGNAL_REPEATED:

@@ -17,6 +17,7 @@ from mexgen_gcs.config import Mission, load_mission
 from mexgen_gcs.errors import ConfigError, MexgenError
 from mexgen_gcs.io.clock import VehicleClock
 from mexgen_gcs.mission.controller import MissionResult
+from mexgen_gcs.mission.iq_receiver import IqReceiverSpec
 from mexgen_gcs.mission.run import (
     DEFAULT_MAVLINK_PORT,
     DEFAULT_RADIO_PORT,
@@ -29,6 +30,7 @@ from mexgen_gcs.mission.run import (
     run_sitl,
     summary_text,
 )
+from mexgen_gcs.receiver.run import ReceiveOptions
 
 
 def _ui_runner(args: argparse.Namespace) -> MissionRunner | None:
@@ -74,7 +76,8 @@ def cmd_sitl(args: argparse.Namespace) -> int:
                           speedup=float(getattr(args, "speedup", 1.0) or 1.0),
                           method=getattr(args, "method", None),
                           log_dir=getattr(args, "log_dir", None) or "flights", runner=runner,
-                          time_scale=getattr(args, "time_scale", None))
+                          time_scale=getattr(args, "time_scale", None),
+                          receiver=getattr(args, "receiver", None) or "sim")
     except ConfigError as exc:
         print(str(exc), file=sys.stderr)
         return 2
@@ -115,10 +118,20 @@ def cmd_fly(args: argparse.Namespace) -> int:
     runner = _ui_runner(args)
     radio = getattr(args, "radio", None) or mission.receiver.listen
     clock = VehicleClock(fixed_rate=getattr(args, "time_scale", None))
+    iq = None
+    if getattr(args, "iq_source", None):
+        host = radio.removeprefix("udp://").rpartition(":")
+        send_to = f"udp://127.0.0.1:{host[2]}" if host[0] in ("0.0.0.0", "") else radio
+        iq = IqReceiverSpec(args.iq_source, ReceiveOptions(
+            gain_db=args.iq_gain, cal_offset_db=args.iq_cal_offset, ppm=args.iq_ppm))
+        radio_send = send_to
+    else:
+        radio_send = radio
     try:
         result = asyncio.run(fly_mission(
             mission, connect_url=args.connect, radio_url=radio, clock=clock, log_dir=out,
-            method=mission.planner.method, seed=seed, runner=runner))
+            method=mission.planner.method, seed=seed, runner=runner, iq=iq,
+            iq_send_url=radio_send))
     except MexgenError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
