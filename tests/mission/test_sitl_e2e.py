@@ -380,6 +380,7 @@ def test_a_second_sigterm_with_the_simulator_gone_exits_within_5_s(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+    print(f"exit {exit_s:.2f} s after the second SIGTERM")
     assert exit_s < 5.0, exit_s
     assert proc.returncode == 1
     assert "SIGTERM after SIGTERM" in stderr
