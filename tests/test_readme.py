@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -100,7 +101,8 @@ def test_the_readmes_quick_commands_run_as_written(capsys: pytest.CaptureFixture
     assert pytest_cmds
     for cmd in pytest_cmds:
         # -n 0 after the command's own -n: collect in one process, not in workers
-        procs[f"{cmd} --collect-only"] = _start([*cmd.split()[1:], "--collect-only", "-n", "0"])
+        argv = [*shlex.split(cmd)[1:], "--collect-only", "-n", "0"]
+        procs[f"{cmd} --collect-only"] = _start(argv)
     for cmd in _table_commands():
         if cmd.startswith("mexgen-gcs "):
             assert main([cmd.split()[1], "--help"]) == 0, cmd

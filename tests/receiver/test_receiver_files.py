@@ -90,6 +90,7 @@ def _cli(*args, timeout=120):
                           text=True, timeout=timeout)
 
 
+@pytest.mark.long  # the command line as a subprocess
 def test_receive_command_sends_wire_datagrams(raw_file):
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
@@ -116,6 +117,7 @@ def test_receive_command_sends_wire_datagrams(raw_file):
     assert "4 pulses" in r.stdout and "centre 150.2800 MHz" in r.stderr
 
 
+@pytest.mark.long  # the command line as a subprocess
 def test_receive_refuses_a_tag_outside_the_recording(raw_file, tmp_path):
     narrow = f"file:{raw_file}?rate=250000&centre=150.28e6"
     r = _cli("receive", str(DEMO), "--source", narrow, "--to", "udp://127.0.0.1:9")
