@@ -34,6 +34,7 @@ from mexgen_gcs.config.sim_schema import SimSection, SimTag
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
 from mexgen_gcs.core.geo import LocalFrame
+from mexgen_gcs.core.mission_core import ReportRule
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.radio import RadioModel
 from mexgen_gcs.core.radio_belief import RadioUncertainty, TagRadioPrior
@@ -251,6 +252,13 @@ class Mission(Section):
             speed_min_m_s=f.speed_min_m_s,
             speed_max_m_s=f.speed_max_m_s,
         )
+
+    def report_rule(self) -> ReportRule:
+        """When a tag is reported before it reaches the radius (localisation section)."""
+        loc = self.localisation
+        return ReportRule(stall_window_s=loc.stall_window_s,
+                          stall_min_shrink=loc.stall_min_shrink_percent / 100.0,
+                          tag_budget_s=loc.tag_budget_s)
 
     def filter_config(self) -> FilterConfig:
         """The core Bernoulli filter settings (filter + localisation sections)."""

@@ -118,7 +118,8 @@ def build_core(mission: Any, rng: np.random.Generator) -> MissionCore:
         mission.search_area(), mission.filter_config(), rng, kind=mission.kind,
         target_rule=mission.planner.target,
         follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors())
+        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors(),
+        report_rule=mission.report_rule())
 
 
 async def fly_mission(

@@ -37,7 +37,8 @@ def warm_up(mission: Any) -> float:
         mission.tag_ids, mission.filter_motion_model(), mission.radio_model(), area,
         mission.filter_config(), rng, kind=mission.kind, target_rule=mission.planner.target,
         follow_tag=mission.follow.tag if mission.follow is not None else None,
-        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors())
+        planning_particles=mission.planner.n_particles, tag_priors=mission.tag_radio_priors(),
+        report_rule=mission.report_rule())
     centre = np.asarray(area.centre_m, dtype=np.float64)
     rx = np.array([centre[0], centre[1], float(mission.flight.alt_m)])
     core.add_detection(mission.tag_ids[0], -50.0, rx, 0.0)
