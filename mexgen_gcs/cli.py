@@ -112,7 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the objects' motion: static tags, or the paper's four models")
     p.add_argument("--methods", default="pim,mc8,mexgen", metavar="M1,M2",
                    help="comma-separated: pim, mc8 (MC-M with M=8), mexgen (MexGen-512), "
-                   "oracle<R> (knows the truth, orbits each tag at R m: the floor)")
+                   "oracle<R> / oraclestar<R> (know the truth; orbit each tag at R m / fly passes "
+                   "over it out to R m: the floor)")
     p.add_argument("--starts", type=_positive_int, default=50, metavar="N",
                    help="unique initial states")
     p.add_argument("--reps", type=_positive_int, default=30, metavar="N",

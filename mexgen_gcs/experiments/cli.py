@@ -50,7 +50,7 @@ def parse_methods(text: str) -> tuple[str, ...]:
     bad = [m for m in names if m not in METHODS and not m.startswith(ORACLE_PREFIX)]
     if bad or not names:
         raise ConfigError(f"--methods {text!r}: expected a comma-separated list of "
-                          f"{', '.join(METHODS)}, oracle<R>")
+                          f"{', '.join(METHODS)}, oracle<R>, oraclestar<R>")
     for m in names:
         oracle_orbit_m(m)  # a clear error for a bad oracle radius
     return names

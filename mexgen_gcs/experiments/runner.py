@@ -27,11 +27,13 @@ run ends when every tag is reported, as the flight does (the tight reading then 
 happened before). ``reasons``, ``reported_t_s`` and ``reported_radii_m`` say which, when and
 with what radius; the series carry every tag's radius at every pulse.
 
-The oracle (method ``oracle<R>``, e.g. ``oracle60``): the same world, filter, claims and report
-rule, but the heading is not planned: the vehicle flies to the *true* position of the core's
-target tag and orbits it at R metres horizontal (at the scenario's speed, or slower where the
-acceleration limit forbids it), re-aimed every control period. It is the floor our planner is
-measured against (it knows what the planner has to find out).
+The oracles (methods ``oracle<R>``, e.g. ``oracle60``, and ``oraclestar<R>``): the same world,
+filter, claims and report rule, but the heading is not planned: the vehicle flies to the *true*
+position of the core's target tag and orbits it at R metres horizontal (at the scenario's
+speed, or slower where the acceleration limit forbids it), or flies straight passes over it out
+to R metres, each from another side (:class:`StarPasses`); re-aimed every control period.
+The better of them is the floor our planner is measured against (they know what the planner
+has to find out).
 
 ``run_one`` is the task function of the process pool and of Dask workers: a pure function of
 its ``RunSpec`` (the same spec gives the same row anywhere, wall times aside).
@@ -49,7 +51,13 @@ from numpy.typing import NDArray
 
 from mexgen_gcs.core.mission_core import Localised, MissionCore
 from mexgen_gcs.core.planner import Planner, VehicleState
-from mexgen_gcs.experiments.scenario import Scenario, method_config, mission_for, oracle_orbit_m
+from mexgen_gcs.experiments.scenario import (
+    Scenario,
+    method_config,
+    mission_for,
+    oracle_orbit_m,
+    oracle_pattern,
+)
 from mexgen_gcs.experiments.seeds import run_seeds
 from mexgen_gcs.experiments.world import PointMass, RadioWorld, reality_for, truth_for
 from mexgen_gcs.mission.guidance import velocity_setpoint
@@ -138,8 +146,10 @@ def run_one(spec: RunSpec) -> RunResult:
         tight_radius_m=sc.tight_radius_m if sc.kind == "localise" else None,
         report_rule=mission.report_rule())
     orbit_m = oracle_orbit_m(spec.method)
+    star = StarPasses(orbit_m) if oracle_pattern(spec.method) == "star" and orbit_m else None
     config = replace(planner_config(mission, planner_method), reach=sc.planner_reach,
-                     outcome=sc.planner_outcome)  # type: ignore[arg-type]
+                     outcome=sc.planner_outcome,  # type: ignore[arg-type]
+                     toward_target=sc.planner_toward_target)
     planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]
     radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio),
@@ -173,6 +183,9 @@ def run_one(spec: RunSpec) -> RunResult:
             return None, sc.speed_m_s
         j = tag_ids.index(targets[0])
         k_now = min(round(t / sc.pulse_period_s), truth.states.shape[0] - 1)
+        if star is not None:
+            return star.heading(targets[0], vehicle.xyz_m[:2], truth.states[k_now, j, :2]), \
+                sc.speed_m_s
         return orbit_heading(vehicle.xyz_m[:2], truth.states[k_now, j, :2], orbit_m,
                              sc.speed_m_s, sc.max_accel_m_s2)
 
@@ -285,6 +298,37 @@ def first_all_under(t_s: FloatArray, radius_m: FloatArray, limit_m: float) -> fl
     None if never."""
     ok = np.all(radius_m <= limit_m, axis=1)
     return float(t_s[int(np.argmax(ok))]) if ok.any() else None
+
+
+class StarPasses:
+    """The star oracle's path about one tag at a time: straight passes over the (true) tag out
+    to ``reach_m`` on the far side, each next end point 157.5 deg further round, so successive
+    passes cross near the tag (within 0.2 reach) from directions 22.5 deg apart: the range to
+    the tag sweeps from overhead to ``reach_m`` on every pass, from every side. The first pass
+    heads over the tag from where the vehicle is. ENU metres, compass degrees out."""
+
+    STEP_DEG = 157.5
+    ARRIVED_M = 15.0
+
+    def __init__(self, reach_m: float) -> None:
+        self.reach_m = reach_m
+        self._tag: str | None = None
+        self._angle_rad = 0.0
+
+    def heading(self, tag_id: str, vehicle_xy: FloatArray, tag_xy: FloatArray) -> float:
+        v = np.asarray(vehicle_xy, dtype=np.float64)[:2]
+        c = np.asarray(tag_xy, dtype=np.float64)[:2]
+        if tag_id != self._tag:  # a new tag: the first end point beyond it, seen from here
+            self._tag = tag_id
+            d = c - v
+            self._angle_rad = math.atan2(float(d[1]), float(d[0]))
+        end = c + self.reach_m * np.array([math.cos(self._angle_rad), math.sin(self._angle_rad)])
+        if float(np.hypot(*(end - v))) < self.ARRIVED_M:
+            self._angle_rad += math.radians(self.STEP_DEG)
+            end = c + self.reach_m * np.array([math.cos(self._angle_rad),
+                                               math.sin(self._angle_rad)])
+        d = end - v
+        return math.degrees(math.atan2(float(d[0]), float(d[1]))) % 360.0
 
 
 def orbit_heading(vehicle_xy: FloatArray, centre_xy: FloatArray, orbit_m: float,

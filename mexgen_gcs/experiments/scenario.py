@@ -154,6 +154,8 @@ class Scenario:
     """core PlannerConfig.reach: stretch the look-ahead to reach a far tag."""
     planner_outcome: str = "pooled"
     """core PlannerConfig.outcome: how an uncertain detect/miss outcome is weighed."""
+    planner_toward_target: bool = False
+    """core PlannerConfig.toward_target: one more action, straight at the target's estimate."""
     reality: str = "matched"
     """The radio world's reality profile (core.reality.PROFILES): how it differs from the
     mission's model. "matched" is the model itself."""
@@ -295,17 +297,31 @@ def scenario_from_settings(settings: dict[str, Any]) -> Scenario:
 
 
 ORACLE_PREFIX = "oracle"
-"""``oracle<R>``: the vehicle that knows the truth and orbits each tag at R m (runner)."""
+"""``oracle<R>`` orbits each tag at R m, ``oraclestar<R>`` flies passes over it out to R m
+(a star); both know the truth (runner)."""
+ORACLE_PATTERNS = ("star", "")
+"""The oracle name's pattern word: "star" (passes), "" (orbit)."""
+
+
+def oracle_pattern(method: str) -> str | None:
+    """"orbit" or "star" for an oracle method name, None for a planner's."""
+    if not method.startswith(ORACLE_PREFIX):
+        return None
+    oracle_orbit_m(method)  # validates
+    return "star" if method.startswith(ORACLE_PREFIX + "star") else "orbit"
 
 
 def oracle_orbit_m(method: str) -> float | None:
-    """The orbit radius of an ``oracle<R>`` method name (e.g. oracle60 -> 60.0), else None."""
+    """The radius (m) of an oracle method name: the orbit of ``oracle<R>`` (oracle60 -> 60.0)
+    or the passes' reach of ``oraclestar<R>``; None for a planner's name."""
     if not method.startswith(ORACLE_PREFIX):
         return None
     text = method[len(ORACLE_PREFIX):]
+    text = text.removeprefix("star")
     if not text.isdigit() or not 5 <= int(text) <= 1000:
-        raise ConfigError(f"unknown method {method!r}: an oracle is oracle<R> with R the orbit "
-                          "radius in whole metres, 5..1000 (e.g. oracle60)")
+        raise ConfigError(f"unknown method {method!r}: an oracle is oracle<R> (orbit) or "
+                          "oraclestar<R> (passes) with R in whole metres, 5..1000 (e.g. "
+                          "oracle60)")
     return float(text)
 
 
@@ -314,7 +330,8 @@ def method_config(method: str) -> tuple[str, str]:
     oracle<R>, whose mission is MexGen's; its planner is not used)."""
     orbit = oracle_orbit_m(method)
     if orbit is not None:
-        return Method.MEXGEN.value, f"Oracle-{orbit:.0f}"
+        kind = "star" if oracle_pattern(method) == "star" else "orbit"
+        return Method.MEXGEN.value, f"Oracle {kind} {orbit:.0f} m"
     try:
         return METHODS[method]
     except KeyError:
@@ -333,7 +350,7 @@ def ordered_methods(names: Iterable[str]) -> list[str]:
     orbit radius."""
     present = set(names)
     oracles = sorted((m for m in present if oracle_orbit_m(m) is not None),
-                     key=lambda m: oracle_orbit_m(m) or 0.0)
+                     key=lambda m: (oracle_pattern(m) or "", oracle_orbit_m(m) or 0.0))
     return [m for m in METHODS if m in present] + oracles
 
 

@@ -15,6 +15,7 @@ from mexgen_gcs.experiments.cli import parse_methods
 from mexgen_gcs.experiments.runner import (
     COLUMNS,
     RunSpec,
+    StarPasses,
     first_all_under,
     orbit_heading,
     run_one,
@@ -23,6 +24,7 @@ from mexgen_gcs.experiments.scenario import (
     method_label,
     mission_for,
     oracle_orbit_m,
+    oracle_pattern,
     ordered_methods,
     scenario,
 )
@@ -109,11 +111,13 @@ def test_the_oracle_flies_to_the_true_tags_with_the_same_filter() -> None:
 
 def test_oracle_names() -> None:
     assert oracle_orbit_m("oracle60") == 60.0 and oracle_orbit_m("mexgen") is None
-    assert method_label("oracle60") == "Oracle-60"
-    assert ordered_methods(["oracle80", "mexgen", "oracle40", "pim"]) == [
-        "pim", "mexgen", "oracle40", "oracle80"]
+    assert oracle_orbit_m("oraclestar150") == 150.0
+    assert oracle_pattern("oraclestar150") == "star" and oracle_pattern("oracle60") == "orbit"
+    assert method_label("oracle60") == "Oracle orbit 60 m"
+    assert ordered_methods(["oracle80", "oraclestar100", "mexgen", "oracle40", "pim"]) == [
+        "pim", "mexgen", "oracle40", "oracle80", "oraclestar100"]
     assert parse_methods("mexgen,oracle30") == ("mexgen", "oracle30")
-    for bad in ("oracle", "oracle2", "oraclex", "mexgen2"):
+    for bad in ("oracle", "oracle2", "oraclex", "mexgen2", "oraclestar", "oraclestarx"):
         with pytest.raises(ConfigError):
             parse_methods(bad)
 
@@ -146,4 +150,23 @@ def test_the_summary_tabulates_time_to_radius_and_reasons() -> None:
     assert cells[4].startswith("0.50") and cells[6].startswith("1.00")
     reasons = next(x for x in md.splitlines() if x.startswith("| Static | MexGen | 8 |"))
     assert "| 5 | 1 | 1 | 1 |" in reasons and "0.50" in reasons
-    assert "| Static | Oracle-60 |" in md
+    assert "| Static | Oracle orbit 60 m |" in md
+
+
+def test_star_passes_cross_the_tag_from_ever_new_sides() -> None:
+    """Flown with a point mass that turns instantly, each pass runs out to the reach and the
+    passes cross within 0.2 reach of the tag, from directions 22.5 deg apart."""
+    star = StarPasses(150.0)
+    tag = np.array([300.0, -100.0])
+    xy = np.array([0.0, 0.0])
+    dists, headings = [], []
+    for _ in range(3000):
+        h = star.heading("T1", xy, tag)
+        headings.append(h)
+        xy = xy + 1.0 * np.array([math.sin(math.radians(h)), math.cos(math.radians(h))])
+        dists.append(float(np.hypot(*(xy - tag))))
+    d = np.array(dists[500:])
+    assert d.min() < 0.2 * 150.0 + 2.0 and d.max() < 150.0 + 2.0
+    assert len({round(x) for x in headings[500:]}) > 8  # many directions
+    first = star.heading("T2", np.array([0.0, 0.0]), np.array([0.0, 100.0]))
+    assert first == pytest.approx(0.0)  # a new tag: straight over it from here
