@@ -56,7 +56,7 @@ def main(argv: list[str]) -> int:
         c = reason_counts(rows)
         held = int((fe <= fr).sum())
         print(f"| {name} | {n} | {success_ci(ok, n).text(2)} | {' | '.join(unders)} | "
-              f"{' / '.join(medians)} | {np.median(ends) if ends.size else float('nan'):.0f} | "
+              f"{' / '.join(medians)} | {f'{np.median(ends):.0f}' if ends.size else '–'} | "
               f"{inside}/{claims} {success_ci(inside, claims).text(2)} | "
               f"{held}/{fr.size} {success_ci(held, fr.size).text(2)}"
               f" | {np.median(fe):.1f} | {np.median(fr):.1f} | "

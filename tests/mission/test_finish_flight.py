@@ -42,3 +42,9 @@ async def test_an_unreachable_radius_ends_with_every_tag_reported(tmp_path):
     report = write_report(flight, tmp_path / "report")
     text = report.markdown.read_text(encoding="utf-8")
     assert f"budget @ {rep.after_s:.1f} s" in text
+
+    # the mission summary printed at the end says it too
+    from mexgen_gcs.mission.run import summary_text
+
+    line = next(x for x in summary_text(f.result).splitlines() if x.strip().startswith("T1:"))
+    assert "not localised" in line and f"reported budget after {rep.after_s:.0f} s" in line
