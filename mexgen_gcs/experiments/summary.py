@@ -377,8 +377,7 @@ def reason_counts(rows: Rows) -> dict[str, int]:
 def _finish_section(rows: Rows, ident: dict[str, Any]) -> list[str]:
     """Time to radius (all tags under 50 / 75 / 100 m at once against time) and why tags were
     reported; format 5 runs.csv only."""
-    if not any(r.get("all_under_50_s", "") != "" or r.get("reasons", "").strip(";")
-               for r in rows) and not any("all_under_50_s" in r for r in rows):
+    if not any("all_under_50_s" in r for r in rows):  # format 4 and earlier
         return []
     out = ["## Time to radius and reporting", "",
            "Share of runs with every tag's 95 % radius at most R at once, by time (a run that "

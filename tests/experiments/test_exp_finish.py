@@ -170,3 +170,22 @@ def test_star_passes_cross_the_tag_from_ever_new_sides() -> None:
     assert len({round(x) for x in headings[500:]}) > 8  # many directions
     first = star.heading("T2", np.array([0.0, 0.0]), np.array([0.0, 100.0]))
     assert first == pytest.approx(0.0)  # a new tag: straight over it from here
+
+
+def test_cli_finish_and_an_oracle(tmp_path) -> None:
+    import json
+
+    from mexgen_gcs.cli import main
+    from mexgen_gcs.experiments.store import read_rows
+
+    assert main(["experiment", "localise", "--model", "static", "--reality", "field",
+                 "--estimator", "robust", "--methods", "mexgen,oraclestar100", "--finish",
+                 "--quick", "--starts", "1", "--reps", "1", "--workers", "1", "--out",
+                 str(tmp_path)]) == 0
+    ident = json.loads((tmp_path / "experiment.json").read_text())
+    assert ident["format"] == 5 and ident["settings"]["static"]["finish"] is True
+    assert "--finish" in (tmp_path / "commands.log").read_text()
+    assert {r["method"] for r in read_rows(tmp_path)} == {"mexgen", "oraclestar100"}
+    summary = (tmp_path / "summary.md").read_text()
+    assert "## Time to radius and reporting" in summary and "Oracle star 100 m" in summary
+    assert "Reporting (`--finish`)" in summary
