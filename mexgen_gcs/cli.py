@@ -145,7 +145,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", choices=EXPERIMENT_MODELS, default="rw",
                    help="the objects' motion: static tags, or the paper's four models")
     p.add_argument("--methods", default="pim,mc8,mexgen", metavar="M1,M2",
-                   help="comma-separated: pim, mc8 (MC-M with M=8), mexgen (MexGen-512)")
+                   help="comma-separated: pim, mc8 (MC-M with M=8), mexgen (MexGen-512), "
+                   "oracle<R> / oraclestar<R> (know the truth; orbit each tag at R m / fly passes "
+                   "over it out to R m: the floor)")
     p.add_argument("--starts", type=_positive_int, default=50, metavar="N",
                    help="unique initial states")
     p.add_argument("--reps", type=_positive_int, default=30, metavar="N",
@@ -165,6 +167,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="classic: trusts the radio model (the paper's); robust: estimates each "
                    "tag's power offset and path-loss exponent and the antenna's front-to-back "
                    "ratio, shadowing, outliers")
+    p.add_argument("--finish", action="store_true",
+                   help="the mission's stall and budget rules: every tag reported in bounded "
+                   "time (reached, stalled, budget), the run ends when all are "
+                   "(docs/mission-finish.md)")
     p.add_argument("--quick", action="store_true",
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")

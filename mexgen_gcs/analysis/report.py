@@ -163,7 +163,7 @@ def report_document(flight: FlightData, s: FlightSummary,
         _vehicle_link_section(doc, link)
 
     sec = doc.section("Tags")
-    headers = ["tag", "detections", "localised after (s)", "lat", "lon", "east (m)",
+    headers = ["tag", "detections", "localised after (s)", "reported", "lat", "lon", "east (m)",
                "north (m)", f"{int(flight.mission.localisation.confidence * 100)}% radius (m)",
                "1-sigma major (m)", "existence"]
     if s.has_truth:
@@ -171,7 +171,7 @@ def report_document(flight: FlightData, s: FlightSummary,
                     "inside final radius", "RMS tracking error (m)"]
     trows = []
     for t in s.tags:
-        row = [t.tag_id, str(t.detections), fmt(t.localised_after_s),
+        row = [t.tag_id, str(t.detections), fmt(t.localised_after_s), _reported_cell(t),
                fmt(t.final_lat_deg, 6), fmt(t.final_lon_deg, 6), fmt(t.final_east_m),
                fmt(t.final_north_m), fmt(t.final_radius_m), fmt(t.final_sigma_major_m),
                fmt(t.final_existence, 3)]
@@ -182,7 +182,9 @@ def report_document(flight: FlightData, s: FlightSummary,
         trows.append(row)
     sec.table(headers, trows)
     sec.para("Position, radius and existence are the final estimate; 'localised after' is the "
-             "time from airborne to the tag_localised event"
+             "time from airborne to the tag_localised event; 'reported' is why and when the "
+             "mission moved on from the tag (reached its radius, stalled, or spent its budget) "
+             "with its radius then"
              + ("; errors are distances to the simulator's truth at that moment, and the RMS "
                 "tracking error is over every pulse of the flight." if s.has_truth else "."))
     if s.has_truth:
@@ -217,6 +219,13 @@ def report_document(flight: FlightData, s: FlightSummary,
     sec.image(PLOTS["rssi"], "RSSI against distance to the estimate, with the fitted path loss")
     sec.image(PLOTS["timing"], "Planner wall time per stage")
     return doc
+
+
+def _reported_cell(t: Any) -> str:
+    """'stalled @ 212 s, 63 m' (or '–' when the tag was not reported)."""
+    if t.reported_reason is None:
+        return "–"
+    return f"{t.reported_reason} @ {fmt(t.reported_after_s)} s, {fmt(t.reported_radius_m)} m"
 
 
 def _yes_no(inside: bool | None) -> str:

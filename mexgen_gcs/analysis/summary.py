@@ -68,6 +68,11 @@ class TagSummary:
     inside_final_radius: bool | None = None
     """Was the truth inside the final estimate's radius (localised or not)? None without
     truth or without an estimate."""
+    reported_reason: str | None = None
+    """Why the tag was reported (reached, stalled, budget; the result record's reports), None
+    if it was not (or the log predates reporting)."""
+    reported_after_s: float | None = None
+    reported_radius_m: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -255,7 +260,19 @@ def tag_summary(flight: FlightData, tag_id: str, truth: Truth | None) -> TagSumm
         inside_claimed_radius=None if loc_fields["err"] is None or loc_fields["r"] is None
         else bool(loc_fields["err"] <= loc_fields["r"]),
         inside_final_radius=None if fin["err"] is None or fin["r"] is None
-        else bool(fin["err"] <= fin["r"]))
+        else bool(fin["err"] <= fin["r"]),
+        **_reported(flight, tag_id))
+
+
+def _reported(flight: FlightData, tag_id: str) -> dict[str, Any]:
+    """The result record's report of a tag: reason, seconds after airborne, radius."""
+    reports = flight.result.get("reports") if flight.result is not None else None
+    rep = (reports or {}).get(tag_id)
+    if rep is None:
+        return {}
+    return {"reported_reason": str(rep.reason), "reported_after_s": float(rep.after_s),
+            "reported_radius_m": _opt(float(rep.radius_m)) if rep.radius_m is not None
+            else None}
 
 
 def planner_timing(flight: FlightData) -> tuple[StageTiming, ...]:

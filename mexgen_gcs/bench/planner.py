@@ -10,7 +10,9 @@ bimodal particle cloud (two clusters ~600 m apart, 60 m spread) in a 1 km x 1 km
 random-walk model the demo mission's filter uses; an extra row plans the first setting with the
 CV-IFT model, whose prediction is the motion model's cost, and one on the robust estimator's
 belief of a static tag (means and spread of the radio unknowns, 400 heard cells to condition
-each pulse on), whose extra cost is the neighbour search and a second power per particle.
+each pulse on), whose extra cost is the neighbour search and a second power per particle, and
+the same with the richer action set (``toward_target``: a ninth heading, straight at the
+estimate).
 The vehicle flies at 50 m, 10 m/s north-east, inside the area. Each (setting, method) keeps
 one Planner, as a mission does; medians, min and max over ``iterations`` timed plans after
 ``warmup`` untimed ones. Targets are
@@ -58,6 +60,8 @@ class Setting:
     robust: bool = False
     """Plan on the robust estimator's belief: per-particle offsets and exponents with their
     spread as noise, and pulses conditioned on 400 heard cells (core.radio_belief)."""
+    toward_target: bool = False
+    """The richer action set: one more heading, straight at the target's estimate."""
 
 
 SETTINGS = (
@@ -66,6 +70,7 @@ SETTINGS = (
     Setting("N=20000", 1, 20000, "rw"),
     Setting("1 tag cv-ift", 1, 1000, "cv-ift"),
     Setting("1 tag robust", 1, 1000, "static", robust=True),
+    Setting("robust +pass", 1, 1000, "static", robust=True, toward_target=True),
 )
 
 
@@ -171,7 +176,8 @@ def run(
         beliefs = _beliefs(setting, np.random.default_rng(100 + k))
         for method in methods:
             config = PlannerConfig(method=method, samples=512, mc_rollouts=8, lookahead_s=20.0,
-                                   step_s=1.0, n_headings=8, speed_m_s=10.0)
+                                   step_s=1.0, n_headings=8, speed_m_s=10.0,
+                                   toward_target=setting.toward_target)
             planner = Planner(config, radio, area)
             row = _measure(planner, beliefs, vehicle, iterations, warmup, seed=k)
             target = TARGETS_MS.get((setting.name, method))

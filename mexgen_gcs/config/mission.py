@@ -37,7 +37,7 @@ from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
 from mexgen_gcs.core.generators import method_name
 from mexgen_gcs.core.geo import LocalFrame
-from mexgen_gcs.core.mission_core import MissionCore
+from mexgen_gcs.core.mission_core import MissionCore, ReportRule
 from mexgen_gcs.core.motion import MotionModel, make_motion_model
 from mexgen_gcs.core.planner import PlannerConfig
 from mexgen_gcs.core.radio import RadioModel
@@ -270,6 +270,13 @@ class Mission(Section):
             speed_max_m_s=f.speed_max_m_s,
         )
 
+    def report_rule(self) -> ReportRule:
+        """When a tag is reported before it reaches the radius (localisation section)."""
+        loc = self.localisation
+        return ReportRule(stall_window_s=loc.stall_window_s,
+                          stall_min_shrink=loc.stall_min_shrink_percent / 100.0,
+                          tag_budget_s=loc.tag_budget_s)
+
     def filter_config(self) -> FilterConfig:
         """The core Bernoulli filter settings (filter + localisation sections)."""
         f, loc = self.filter, self.localisation
@@ -308,7 +315,8 @@ class Mission(Section):
             kind=self.kind, target_rule=self.planner.target,
             follow_tag=self.follow.tag if self.follow is not None else None,
             planning_particles=self.planner.n_particles, t0=t0,
-            tag_priors=self.tag_radio_priors(), tight_radius_m=tight_radius_m)
+            tag_priors=self.tag_radio_priors(), tight_radius_m=tight_radius_m,
+            report_rule=self.report_rule())
 
     def sim_tag(self, tag_id: str) -> SimTag:
         """The simulated truth of a mission tag: its sim.tags entry, or a static tag at a

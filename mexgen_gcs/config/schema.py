@@ -411,7 +411,8 @@ class Planner(Section):
 
 
 class Localisation(Section):
-    """When a tag counts as localised."""
+    """When a tag counts as localised, and when it is reported anyway so the mission ends in
+    bounded time (core.mission_core.ReportRule; docs/mission-finish.md)."""
 
     radius_m: Float = Field(50.0, gt=0.0, le=100_000.0,
                             description="Uncertainty radius a tag must shrink to, metres.")
@@ -419,6 +420,19 @@ class Localisation(Section):
                               description="Probability mass inside radius_m.")
     min_existence: Float = Field(0.5, ge=0.0, le=1.0,
                                  description="Existence probability a localised tag needs.")
+    stall_window_s: Float | None = Field(
+        120.0, gt=0.0, le=86_400.0,
+        description="A tag worked on this long whose radius shrank by less than "
+        "stall_min_shrink_percent over that time is reported as stalled and the vehicle moves "
+        "on, seconds of worked-on time (null: never stalled).")
+    stall_min_shrink_percent: Float = Field(
+        10.0, ge=0.0, lt=100.0,
+        description="Least shrink of the radius over stall_window_s that keeps a tag worked on, "
+        "percent.")
+    tag_budget_s: Float | None = Field(
+        240.0, gt=0.0, le=86_400.0,
+        description="A tag worked on this long in all is reported with its radius (reason "
+        "budget) and the vehicle moves on, seconds (null: no budget).")
 
 
 class Follow(Section):

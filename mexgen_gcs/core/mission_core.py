@@ -13,6 +13,17 @@ An optional second, tighter radius (``tight_radius_m``, used by the experiments)
 same way: when each tag's radius first drops to it. It changes no decision until every tag is
 localised at the mission's radius; after that the target rule runs on the tags not yet
 within the tight radius (a flight leaves it unset and is done at that point).
+
+Reporting (``report_rule``, :class:`ReportRule`): every tag is *reported* in bounded time, with
+the reason. A tag is reported as ``reached`` when it is localised; ``stalled`` when, over the
+last ``stall_window_s`` seconds in which it was the planning target, its 95 % radius shrank by
+less than ``stall_min_shrink`` (a fraction); ``budget`` when it has been the planning target for
+``tag_budget_s`` seconds in all. A reported tag is not targeted again (the planner moves on to
+the others) and its estimate goes on updating from every pulse, but the report stands: a
+stalled tag that later drops under the radius is not reported again. With no rule (or both
+parts off), a tag is reported exactly when it is localised, as before. "Worked on" time is
+booked per pulse to the tags the target rule picks at that pulse (the closest pending tag by
+estimate, or all pending tags), so time flying to a far tag counts against it.
 """
 
 from __future__ import annotations
@@ -35,6 +46,32 @@ from mexgen_gcs.core.radio_belief import TagRadioPrior
 FloatArray = NDArray[np.float64]
 MissionKind = Literal["localise", "follow"]
 TargetRule = Literal["closest", "all"]
+ReportReason = Literal["reached", "stalled", "budget"]
+REPORT_REASONS: tuple[ReportReason, ...] = ("reached", "stalled", "budget")
+
+
+@dataclass(frozen=True, slots=True)
+class ReportRule:
+    """When a tag that has not reached the radius is reported anyway (module docstring)."""
+
+    stall_window_s: float | None = None
+    """Window of worked-on time over which the radius must shrink; None: no stall rule."""
+    stall_min_shrink: float = 0.1
+    """Least relative shrink of the radius over the window, in [0, 1)."""
+    tag_budget_s: float | None = None
+    """Worked-on time after which a tag is reported whatever its radius; None: no budget."""
+
+    def __post_init__(self) -> None:
+        if self.stall_window_s is not None and not self.stall_window_s > 0.0:
+            raise ValueError(f"stall_window_s must be > 0 or None (got {self.stall_window_s})")
+        if not 0.0 <= self.stall_min_shrink < 1.0:
+            raise ValueError(f"stall_min_shrink must be in [0, 1) (got {self.stall_min_shrink})")
+        if self.tag_budget_s is not None and not self.tag_budget_s > 0.0:
+            raise ValueError(f"tag_budget_s must be > 0 or None (got {self.tag_budget_s})")
+
+    @property
+    def active(self) -> bool:
+        return self.stall_window_s is not None or self.tag_budget_s is not None
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,6 +81,17 @@ class Localised:
     tag_id: str
     t: float
     estimate: TagEstimate
+
+
+@dataclass(frozen=True, slots=True)
+class Reported:
+    """The moment a tag was reported, why, and how long it had been worked on."""
+
+    tag_id: str
+    t: float
+    estimate: TagEstimate
+    reason: ReportReason
+    worked_s: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,6 +105,8 @@ class PulseReport:
     newly_localised: tuple[Localised, ...]
     newly_tight: tuple[Localised, ...] = ()
     """Tags whose radius first dropped to the tight radius this pulse (if one is set)."""
+    newly_reported: tuple[Reported, ...] = ()
+    """Tags reported this pulse (reached, stalled or budget)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +152,7 @@ class MissionCore:
         t0: float = 0.0,
         tag_priors: Mapping[str, TagRadioPrior] | None = None,
         tight_radius_m: float | None = None,
+        report_rule: ReportRule | None = None,
     ) -> None:
         if not tag_ids:
             raise ValueError("a mission needs at least one tag")
@@ -127,10 +178,19 @@ class MissionCore:
         self.tight_radius_m = tight_radius_m
         self.tight: dict[str, Localised] = {}
         """Tags whose radius has dropped to ``tight_radius_m`` (the first time)."""
+        self.report_rule = report_rule or ReportRule()
+        self.reported: dict[str, Reported] = {}
+        """Tags reported (first time): reached, stalled or budget."""
+        self.worked_s = dict.fromkeys(self.tag_ids, 0.0)
+        """Seconds each tag has been the planning target (booked per pulse)."""
+        self.radius_log: dict[str, list[tuple[float, float]]] = {t: [] for t in self.tag_ids}
+        """(t, 95 % radius) of every tag at every pulse: the radius over time."""
+        self._worked_log: dict[str, list[tuple[float, float]]] = {t: [] for t in self.tag_ids}
         self.detections = dict.fromkeys(self.tag_ids, 0)
         self.last_rssi_db: dict[str, float] = {}
         self._buffer = {tid: _Buffered() for tid in self.tag_ids}
         self._last_t = t0
+        self._last_estimates: dict[str, TagEstimate] = {}
 
     def reset_clock(self, t: float) -> None:
         """Start the cadence at t (e.g. when airborne): the first predict spans from here."""
@@ -174,6 +234,15 @@ class MissionCore:
         estimates: dict[str, TagEstimate] = {}
         newly: list[Localised] = []
         newly_tight: list[Localised] = []
+        newly_reported: list[Reported] = []
+        if self.kind == "localise":
+            # the tags worked on during the period just flown: the target rule's pick from the
+            # estimates before this pulse's update
+            for tid in self._pending_targets(np.asarray(rx_xyz, dtype=np.float64)[:2]):
+                if not self._worked_log[tid] and tid in self._last_estimates:
+                    # the radius when work on it began
+                    self._worked_log[tid].append((0.0, self._last_estimates[tid].radius_m))
+                self.worked_s[tid] += dt
         for tid, f in self.filters.items():
             f.predict(dt)
             buf = self._buffer[tid]
@@ -189,16 +258,53 @@ class MissionCore:
             self._buffer[tid] = _Buffered()
             est = f.estimate()
             estimates[tid] = est
-            if est.localised and tid not in self.localised:
+            self.radius_log[tid].append((t, est.radius_m))
+            if est.localised and tid not in self.localised and tid not in self.reported:
                 rec = Localised(tid, t, est)
                 self.localised[tid] = rec
                 newly.append(rec)
+            if self.kind == "localise" and tid not in self.reported:
+                reason = "reached" if tid in self.localised else self._report_reason(tid, est)
+                if reason is not None:
+                    self.reported[tid] = Reported(tid, t, est, reason, self.worked_s[tid])
+                    newly_reported.append(self.reported[tid])
             if (self.tight_radius_m is not None and tid not in self.tight
                     and est.radius_m <= self.tight_radius_m
                     and est.existence >= f.config.localised_min_existence):
                 self.tight[tid] = Localised(tid, t, est)
                 newly_tight.append(self.tight[tid])
-        return PulseReport(t, estimates, updated, tuple(newly), tuple(newly_tight))
+        self._last_estimates = estimates
+        return PulseReport(t, estimates, updated, tuple(newly), tuple(newly_tight),
+                           tuple(newly_reported))
+
+    def _report_reason(self, tag_id: str, est: TagEstimate) -> ReportReason | None:
+        """Stall or budget for a tag not yet reported (None: keep working on it). The worked
+        log keeps (worked_s, radius) at each pulse the tag was worked on."""
+        rule = self.report_rule
+        worked = self.worked_s[tag_id]
+        log = self._worked_log[tag_id]
+        if not log or log[-1][0] < worked:
+            log.append((worked, est.radius_m))
+        if rule.tag_budget_s is not None and worked >= rule.tag_budget_s - 1e-9:
+            return "budget"
+        w = rule.stall_window_s
+        if w is not None and worked >= w - 1e-9:
+            # the radius at the latest sample at least the window before now
+            then = next(r for ws, r in reversed(log) if ws <= worked - w + 1e-9) \
+                if log[0][0] <= worked - w + 1e-9 else None
+            if then is not None and est.radius_m > (1.0 - rule.stall_min_shrink) * then:
+                return "stalled"
+        return None
+
+    def _pending_targets(self, xy: FloatArray) -> tuple[str, ...]:
+        """The target rule on the tags not yet reported, from the latest estimates."""
+        pending = [tid for tid in self.tag_ids if tid not in self.reported]
+        if self.target_rule == "all" or len(pending) <= 1:
+            return tuple(pending)
+        ests = self._last_estimates
+        dists = [float(np.linalg.norm((ests[t] if t in ests else self.filters[t].estimate())
+                                      .mean[:2] - xy)) for t in pending]
+        return (pending[int(np.argmin(dists))],)
 
     # -- decisions ---------------------------------------------------------------------------
 
@@ -207,12 +313,12 @@ class MissionCore:
 
     def targets(self, vehicle_xy: FloatArray) -> tuple[str, ...]:
         """The tags to plan for: the follow tag; or the closest (by estimate) tag not yet
-        localised; or all tags not yet localised; once all are, the same on the tags not yet
+        reported; or all tags not yet reported; once all are, the same on the tags not yet
         within the tight radius, if one is set. Empty when there is nothing left to do."""
         if self.kind == "follow":
             assert self.follow_tag is not None
             return (self.follow_tag,)
-        pending = [tid for tid in self.tag_ids if tid not in self.localised]
+        pending = [tid for tid in self.tag_ids if tid not in self.reported]
         if not pending and self.tight_radius_m is not None:
             pending = [tid for tid in self.tag_ids if tid not in self.tight]
         if self.target_rule == "all" or not pending:
@@ -237,6 +343,10 @@ class MissionCore:
 
     def all_localised(self) -> bool:
         return len(self.localised) == len(self.tag_ids)
+
+    def all_reported(self) -> bool:
+        """Every tag is reported (reached, stalled or budget): a localise mission is done."""
+        return len(self.reported) == len(self.tag_ids)
 
     def all_tight(self) -> bool:
         """Every tag's radius has dropped to the tight radius (False if none is set)."""

@@ -17,6 +17,10 @@ step k = 1..H (every ``step_s``, by default every tag pulse):
    ``outcome`` says (:mod:`core.rollout` has the equations);
 4. reward: add ``discount^(k-1) * Renyi(updated, predicted)`` (:mod:`core.reward`).
 
+With ``toward_target`` the action set gains one heading: straight at the first planned
+belief's mean (a pass over the target's estimate, which the fixed headings only approximate
+to within half their spacing); it is scored like every other action.
+
 An action's value is the mean over its rollouts (MC-M: M rollouts; otherwise one) summed over
 the planned tags, minus ``action_cost_weight * turn_cost`` (the turn from the current course,
 in [0, 1], charged once). Actions whose path leaves the search area within the pruning horizon
@@ -133,6 +137,9 @@ class PlannerConfig:
     belief's mean at ``speed_m_s``, up to ``max_lookahead_s`` (see the module docstring)."""
     max_lookahead_s: float = 300.0
     """Longest stretched look-ahead."""
+    toward_target: bool = False
+    """Add one action: the heading straight at the first planned belief's mean (a close pass
+    over the target's estimate), scored like the others by the same generator."""
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
@@ -276,6 +283,9 @@ class Planner:
         _check_beliefs(beliefs)
         xyz, v_xy, yaw_rad = _check_vehicle(vehicle)
         headings = self.headings_rad
+        if cfg.toward_target:
+            mean_xy = np.asarray(beliefs[0].states)[:, :2].mean(axis=0)
+            headings = np.append(headings, compass_bearing_rad(xyz, mean_xy))
         horizon = cfg.prune_horizon_s if cfg.prune_horizon_s is not None else cfg.lookahead_s
         times = fine_times_s(max(horizon, cfg.steps * cfg.step_s), cfg.step_s)
         fine = vehicle_paths(xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2, times)

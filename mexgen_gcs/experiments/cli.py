@@ -20,7 +20,13 @@ from mexgen_gcs.experiments.parallel import RunFailure, execute
 from mexgen_gcs.experiments.progress import Progress
 from mexgen_gcs.experiments.report import write_report
 from mexgen_gcs.experiments.runner import RunSpec
-from mexgen_gcs.experiments.scenario import METHODS, Scenario, scenario
+from mexgen_gcs.experiments.scenario import (
+    METHODS,
+    ORACLE_PREFIX,
+    Scenario,
+    oracle_orbit_m,
+    scenario,
+)
 from mexgen_gcs.experiments.store import RunStore
 
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130
@@ -41,10 +47,12 @@ class ExperimentOutcome:
 
 def parse_methods(text: str) -> tuple[str, ...]:
     names = tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
-    bad = [m for m in names if m not in METHODS]
+    bad = [m for m in names if m not in METHODS and not m.startswith(ORACLE_PREFIX)]
     if bad or not names:
         raise ConfigError(f"--methods {text!r}: expected a comma-separated list of "
-                          f"{', '.join(METHODS)}")
+                          f"{', '.join(METHODS)}, oracle<R>, oraclestar<R>")
+    for m in names:
+        oracle_orbit_m(m)  # a clear error for a bad oracle radius
     return names
 
 
@@ -108,6 +116,8 @@ def _command(args: argparse.Namespace) -> str:
         value = getattr(args, flag, default)
         if value != default:
             parts += [f"--{flag}", value]
+    if getattr(args, "finish", False):
+        parts.append("--finish")
     if args.quick:
         parts.append("--quick")
     return shlex.join(parts)
@@ -121,7 +131,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     sc = scenario(args.scenario, args.model, quick=bool(args.quick),
                   preset=getattr(args, "preset", "paper"),
                   reality=getattr(args, "reality", "matched"),
-                  estimator=getattr(args, "estimator", "classic"))
+                  estimator=getattr(args, "estimator", "classic"),
+                  finish=bool(getattr(args, "finish", False)))
     try:
         result = run_experiment(sc, methods, starts=args.starts, reps=args.reps,
                                 seed=args.seed, out_dir=args.out, workers=args.workers,

@@ -20,7 +20,13 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from mexgen_gcs.experiments.scenario import METHODS, MODELS, scenario, scenario_from_settings
+from mexgen_gcs.experiments.scenario import (
+    MODELS,
+    method_label,
+    ordered_methods,
+    scenario,
+    scenario_from_settings,
+)
 from mexgen_gcs.experiments.stats import success_ci, survival_curve
 from mexgen_gcs.experiments.store import read_identity, read_rows, read_series
 from mexgen_gcs.experiments.summary import (
@@ -93,7 +99,7 @@ def _localise_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[Pat
                 ci = success_ci(k["successes"], k["runs"])
                 assert ci.value is not None and ci.low is not None and ci.high is not None
                 ax.bar([x], [ci.value], width=0.9 * width, color=color,
-                       label=METHODS[method][1] if i == 0 else None)
+                       label=method_label(method) if i == 0 else None)
                 ax.errorbar([x], [ci.value], yerr=[[ci.value - ci.low], [ci.high - ci.value]],
                             color="0.2", capsize=3, lw=1)
         if data:
@@ -102,7 +108,7 @@ def _localise_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[Pat
             for box in bp["boxes"]:
                 box.set_facecolor(color)
                 box.set_alpha(0.6)
-        ax_t.plot([], [], color=color, lw=6, alpha=0.6, label=METHODS[method][1])
+        ax_t.plot([], [], color=color, lw=6, alpha=0.6, label=method_label(method))
     for ax in (ax_t, *axes_s):
         ax.set_xticks(range(len(models)), [MODEL_LABELS[m] for m in models])
         ax.legend(fontsize=8)
@@ -135,7 +141,7 @@ def _survival_plot(out: Path, rows: Rows, ident: dict[str, object], models: list
                 t, done = outcomes(sel, prefix, limit)
                 x, y = survival_curve(t, done, limit)
                 ax.step(x, y, where="post", color=f"C{j}", ls=style,
-                        label=f"{METHODS[method][1]}{' (tight)' if prefix else ''}")
+                        label=f"{method_label(method)}{' (tight)' if prefix else ''}")
         ax.set_title(MODEL_LABELS[model], fontsize=10)
         ax.set_xlabel("time (s)")
         ax.set_ylim(0.0, 1.02)
@@ -153,8 +159,8 @@ def _follow_plots(out: Path, rows: Rows) -> list[Path]:
     for model in [m for m in MODELS if any(r["model"] == m for r in rows)]:
         fig = Figure(figsize=(10.0, 3.8), layout="constrained")
         ax_e, ax_c = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
-        for j, method in enumerate(m for m in METHODS if any(
-                r["model"] == model and r["method"] == m for r in rows)):
+        for j, method in enumerate(ordered_methods(
+                r["method"] for r in rows if r["model"] == model)):
             series = [s for s in (read_series(out, r) for r in rows
                                   if r["model"] == model and r["method"] == method)
                       if s is not None]
@@ -164,7 +170,7 @@ def _follow_plots(out: Path, rows: Rows) -> list[Path]:
             t = series[0]["t_s"][:n]
             err = np.median(np.stack([s["error_m"][:n, 0] for s in series]), axis=0)
             cov = np.median(np.stack([s["trace_m2"][:n, 0] for s in series]), axis=0)
-            label = f"{METHODS[method][1]} ({len(series)} runs)"
+            label = f"{method_label(method)} ({len(series)} runs)"
             ax_e.plot(t, err, color=f"C{j}", label=label)
             ax_c.plot(t, cov, color=f"C{j}", label=label)
         ax_e.set_ylabel("median error (m)")
@@ -192,7 +198,7 @@ def _trajectory_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[P
         for r in sorted(sel, key=lambda r: int(r["rep"])):
             if int(r["start"]) == start:
                 first.setdefault(r["method"], r)
-        methods = [m for m in METHODS if m in first]
+        methods = ordered_methods(first)
         stored = ident.get("settings", {})
         sc = (scenario_from_settings(stored[model]) if isinstance(stored, dict) and model in stored
               else scenario(kind, model, quick,  # type: ignore[arg-type]
@@ -220,7 +226,7 @@ def _trajectory_plots(out: Path, rows: Rows, ident: dict[str, object]) -> list[P
             outcome = (f"success at {float(r['time_s']):.0f} s" if r.get("success") == "1"
                        else "not all localised" if kind == "localise" else
                        f"mean error {float(r['error_mean_m']):.0f} m")
-            ax.set_title(f"{METHODS[method][1]}: start {start}, rep {r['rep']}\n{outcome}",
+            ax.set_title(f"{method_label(method)}: start {start}, rep {r['rep']}\n{outcome}",
                          fontsize=9)
             ax.set_xlabel("east (m)")
             if j == 0:

@@ -48,6 +48,7 @@ and mapping code a flight uses; the two planner settings the mission schema has 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any, Literal
@@ -55,6 +56,7 @@ from typing import Any, Literal
 import yaml
 
 from mexgen_gcs.config import CLASSIC_ESTIMATOR, Mission, parse_mission
+from mexgen_gcs.config.schema import Localisation
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.generators import Method
 from mexgen_gcs.core.motion import PAPER_TRANSITION
@@ -74,6 +76,8 @@ PRESETS: tuple[PresetName, ...] = ("paper", "field")
 
 PAPER_SENSITIVITY_DB = -120.0
 """The paper preset's receiver sensitivity: far below any power in the operating area."""
+_LOCALISATION = Localisation()
+"""The mission schema's localisation defaults (the stall and budget rules)."""
 TIGHT_RADIUS_M = 25.0
 """The second localisation reading (the paper's ~12 m errors suggest a tighter criterion)."""
 
@@ -150,9 +154,20 @@ class Scenario:
     """core PlannerConfig.reach: stretch the look-ahead to reach a far tag."""
     planner_outcome: str = "pooled"
     """core PlannerConfig.outcome: how an uncertain detect/miss outcome is weighed."""
+    planner_toward_target: bool = False
+    """core PlannerConfig.toward_target: one more action, straight at the target's estimate."""
     reality: str = "matched"
     """The radio world's reality profile (core.reality.PROFILES): how it differs from the
     mission's model. "matched" is the model itself."""
+    finish: bool = False
+    """Report every tag in bounded time (the mission's stall and budget rules,
+    ``stall_window_s`` etc. below) and end the run when all are; False: no such rule, a run
+    ends when all are localised (or at the limit)."""
+    stall_window_s: float | None = _LOCALISATION.stall_window_s
+    stall_min_shrink_percent: float = _LOCALISATION.stall_min_shrink_percent
+    tag_budget_s: float | None = _LOCALISATION.tag_budget_s
+    """The mission's localisation.stall_window_s, stall_min_shrink_percent, tag_budget_s
+    (schema defaults), applied when ``finish`` is set."""
     estimator: str = "classic"
     """"classic": the filter trusts the radio model exactly (the paper's simulations);
     "robust": the mission defaults' radio unknowns (power offset and path-loss exponent per
@@ -196,9 +211,10 @@ class Scenario:
 
 def scenario(kind: ScenarioKind, model: ModelName, quick: bool = False,
              preset: PresetName = "paper", *, reality: str = "matched",
-             estimator: str = "classic") -> Scenario:
+             estimator: str = "classic", finish: bool = False) -> Scenario:
     """The settings of a scenario, model and preset; ``quick`` shortens everything (smoke);
-    ``reality`` the radio world's profile, ``estimator`` classic or robust."""
+    ``reality`` the radio world's profile, ``estimator`` classic or robust; ``finish`` the
+    mission's stall and budget rules (every tag reported in bounded time)."""
     if reality not in PROFILES:
         raise ConfigError(f"unknown reality {reality!r}; expected one of {', '.join(PROFILES)}")
     if estimator not in ESTIMATORS:
@@ -224,7 +240,7 @@ def scenario(kind: ScenarioKind, model: ModelName, quick: bool = False,
         sc = replace(sc, front_back_db=mission.front_back_db,
                      sensitivity_db=mission.sensitivity_db,
                      detection_spread_db=mission.detection_spread_db, pd_max=mission.pd_max)
-    sc = replace(sc, reality=reality, estimator=estimator)
+    sc = replace(sc, reality=reality, estimator=estimator, finish=finish)
     if quick:
         sc = replace(sc, quick=True, duration_s=40.0, min_inside_s=min(sc.min_inside_s, 40.0),
                      lookahead_s=5.0, filter_particles=400, planning_particles=200,
@@ -280,13 +296,62 @@ def scenario_from_settings(settings: dict[str, Any]) -> Scenario:
     return Scenario(**values)  # type: ignore[arg-type]  # checked against the fields above
 
 
+ORACLE_PREFIX = "oracle"
+"""``oracle<R>`` orbits each tag at R m, ``oraclestar<R>`` flies passes over it out to R m
+(a star); both know the truth (runner)."""
+ORACLE_PATTERNS = ("star", "")
+"""The oracle name's pattern word: "star" (passes), "" (orbit)."""
+
+
+def oracle_pattern(method: str) -> str | None:
+    """"orbit" or "star" for an oracle method name, None for a planner's."""
+    if not method.startswith(ORACLE_PREFIX):
+        return None
+    oracle_orbit_m(method)  # validates
+    return "star" if method.startswith(ORACLE_PREFIX + "star") else "orbit"
+
+
+def oracle_orbit_m(method: str) -> float | None:
+    """The radius (m) of an oracle method name: the orbit of ``oracle<R>`` (oracle60 -> 60.0)
+    or the passes' reach of ``oraclestar<R>``; None for a planner's name."""
+    if not method.startswith(ORACLE_PREFIX):
+        return None
+    text = method[len(ORACLE_PREFIX):]
+    text = text.removeprefix("star")
+    if not text.isdigit() or not 5 <= int(text) <= 1000:
+        raise ConfigError(f"unknown method {method!r}: an oracle is oracle<R> (orbit) or "
+                          "oraclestar<R> (passes) with R in whole metres, 5..1000 (e.g. "
+                          "oracle60)")
+    return float(text)
+
+
 def method_config(method: str) -> tuple[str, str]:
-    """(planner.method, table label) of an experiment method name (pim, mc8, mexgen)."""
+    """(planner.method, table label) of an experiment method name (pim, mc8, mexgen, or
+    oracle<R>, whose mission is MexGen's; its planner is not used)."""
+    orbit = oracle_orbit_m(method)
+    if orbit is not None:
+        kind = "star" if oracle_pattern(method) == "star" else "orbit"
+        return Method.MEXGEN.value, f"Oracle {kind} {orbit:.0f} m"
     try:
         return METHODS[method]
     except KeyError:
         raise ConfigError(
-            f"unknown method {method!r}; expected one of {', '.join(METHODS)}") from None
+            f"unknown method {method!r}; expected one of {', '.join(METHODS)} or "
+            "oracle<R>") from None
+
+
+def method_label(method: str) -> str:
+    """The table label of an experiment method name (MexGen, Oracle-60...)."""
+    return method_config(method)[1]
+
+
+def ordered_methods(names: Iterable[str]) -> list[str]:
+    """The distinct method names given, in table order: METHODS' order, then the oracles by
+    orbit radius."""
+    present = set(names)
+    oracles = sorted((m for m in present if oracle_orbit_m(m) is not None),
+                     key=lambda m: (oracle_pattern(m) or "", oracle_orbit_m(m) or 0.0))
+    return [m for m in METHODS if m in present] + oracles
 
 
 def mission_yaml(sc: Scenario, method: str) -> str:
@@ -327,7 +392,10 @@ def mission_yaml(sc: Scenario, method: str) -> str:
             "target": "closest",
         },
         "localisation": {"radius_m": sc.localised_radius_m,
-                         "confidence": sc.localised_confidence},
+                         "confidence": sc.localised_confidence,
+                         "stall_window_s": sc.stall_window_s if sc.finish else None,
+                         "stall_min_shrink_percent": sc.stall_min_shrink_percent,
+                         "tag_budget_s": sc.tag_budget_s if sc.finish else None},
         "safety": {"max_mission_time_s": max(sc.duration_s, 1.0)},
     }
     if sc.kind == "follow":

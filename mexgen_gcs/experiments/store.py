@@ -33,7 +33,7 @@ from mexgen_gcs.errors import ConfigError
 from mexgen_gcs.experiments.runner import COLUMNS, RunResult, RunSpec
 from mexgen_gcs.experiments.scenario import Scenario, mission_yaml
 
-FORMAT_VERSION = 4
+FORMAT_VERSION = 5
 """2: runs.csv gained the tight-radius reading (runner.COLUMNS), presets paper|field; 3: the
 claimed radii and their coverage, reality profiles and estimators; 4: every tag's final radius
 and error (``final_*``), localised or not. A directory of another

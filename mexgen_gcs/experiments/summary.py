@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from mexgen_gcs.experiments.scenario import METHODS, MODELS
+from mexgen_gcs.experiments.scenario import MODELS, method_label, ordered_methods
 from mexgen_gcs.experiments.stats import (
     km_median,
     paired_mean,
@@ -54,7 +54,7 @@ def groups(rows: Rows) -> list[tuple[str, str, Rows]]:
     """(model, method, rows) in the canonical order."""
     out: list[tuple[str, str, Rows]] = []
     for model in [m for m in MODELS if any(r["model"] == m for r in rows)]:
-        for method in [m for m in METHODS if any(r["method"] == m for r in rows)]:
+        for method in ordered_methods(r["method"] for r in rows):
             sel = [r for r in rows if r["model"] == model and r["method"] == method]
             if sel:
                 out.append((model, method, sel))
@@ -115,6 +115,7 @@ def summary_markdown(rows: Rows, ident: dict[str, Any]) -> str:
             lines += [f"## Localised at {radius} ({what})", "", *_localise_table(
                 rows, ident, prefix), "", *_coverage_table(rows, prefix), "",
                 *_paired_table(rows, ident, prefix), ""]
+        lines += _finish_section(rows, ident)
     else:
         lines += _follow_table(rows)
     lines += ["", *_throughput_table(rows), ""]
@@ -195,6 +196,13 @@ def settings_lines(ident: dict[str, Any], kind: str) -> list[str]:
             + (f" Second reading from the same runs: {tight:g} m (each run goes on after "
                f"the {g('localised_radius_m'):g} m completion, targeting the tags above "
                f"{tight:g} m, until the limit)." if tight else ""))
+        if g("finish"):
+            out.append(
+                f"- Reporting (`--finish`): a tag is reported as reached at "
+                f"{g('localised_radius_m'):g} m, stalled when its radius shrank by less than "
+                f"{g('stall_min_shrink_percent'):g} % over {g('stall_window_s')} s of work on "
+                f"it, or budget after {g('tag_budget_s')} s of work; the planner then moves "
+                "on, and the run ends (RTL) when every tag is reported.")
     out.append("")
     return out
 
@@ -214,7 +222,7 @@ def _localise_table(rows: Rows, ident: dict[str, Any], prefix: str) -> list[str]
         limit = limit_of(ident, model)
         st = localise_stats(sel, prefix)
         t, done = outcomes(sel, prefix, limit)
-        line = (f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | {st['runs']} | "
+        line = (f"| {MODEL_LABELS[model]} | {method_label(method)} | {st['runs']} | "
                 f"{success_ci(st['successes'], st['runs']).text(2)} | {_pm(st['errors'])} | "
                 f"{_pm(st['times'])} | {km_median(t, done, limit).text(beyond=f'> {limit:g}')}"
                 f" | {restricted_mean(t, done, limit).text(0)} |")
@@ -268,12 +276,12 @@ def _coverage_rows(rows: Rows, prefix: str) -> list[str]:
     for model, method, sel in groups(rows):
         c = coverage_stats(sel, prefix)
         if not c["tags"]:
-            out.append(f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | 0 | 0 | – | – | – | "
+            out.append(f"| {MODEL_LABELS[model]} | {method_label(method)} | 0 | 0 | – | – | – | "
                        "– | – |")
             continue
         e = c["errors"]
         out.append(
-            f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | {c['tags']} | {c['inside']} | "
+            f"| {MODEL_LABELS[model]} | {method_label(method)} | {c['tags']} | {c['inside']} | "
             f"{success_ci(c['inside'], c['tags']).text(2)} | {np.median(e):.1f} | "
             f"{np.percentile(e, 95):.1f} | {e.max():.1f} | {np.median(c['radii']):.1f} |")
     return out
@@ -303,7 +311,7 @@ def _paired_table(rows: Rows, ident: dict[str, Any], prefix: str) -> list[str]:
         d = np.minimum(ta, limit) - np.minimum(tb, limit)
         both = da & db
         out.append(
-            f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | {len(pairs)} | "
+            f"| {MODEL_LABELS[model]} | {method_label(method)} | {len(pairs)} | "
             f"{paired_mean(d).text(1)} | {int((d > 0).sum())} | {int((d < 0).sum())} | "
             f"{int(both.sum())} | {paired_mean(d[both]).text(1)} | {int((db & ~da).sum())} | "
             f"{int((da & ~db).sum())} |")
@@ -319,7 +327,7 @@ def _follow_table(rows: Rows) -> list[str]:
         fin = floats(r["error_final_m"] for r in sel)
         tr = floats(r["trace_mean_m2"] for r in sel)
         trf = floats(r["trace_final_m2"] for r in sel)
-        out.append(f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | {len(sel)} | {_pm(err)} | "
+        out.append(f"| {MODEL_LABELS[model]} | {method_label(method)} | {len(sel)} | {_pm(err)} | "
                    f"{np.median(fin):.1f} | {np.median(tr):.0f} | {np.median(trf):.0f} |")
     return out
 
@@ -334,7 +342,71 @@ def _throughput_table(rows: Rows) -> list[str]:
         cpu = floats(r["cpu_s"] for r in sel).sum()
         wall = floats(r["wall_s"] for r in sel).sum()
         plan = floats(r["plan_ms_median"] for r in sel)
-        out.append(f"| {MODEL_LABELS[model]} | {METHODS[method][1]} | {sim:.0f} | "
+        out.append(f"| {MODEL_LABELS[model]} | {method_label(method)} | {sim:.0f} | "
                    f"{sim / cpu:.0f} | {sim / wall:.0f} | "
                    f"{np.median(plan) if plan.size else math.nan:.1f} |")
+    return out
+
+
+# -- reporting and time to radius -------------------------------------------------------
+
+CURVE_TIMES_S = (250.0, 500.0, 750.0, 1000.0)
+"""The times at which the time-to-radius curve is tabulated."""
+UNDER_RADII = (50, 75, 100)
+REASONS = ("reached", "stalled", "budget")
+
+
+def under_times(rows: Rows, radius: int, limit_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(times, done) of 'every tag's radius at most ``radius`` m at once', per run: the first
+    such pulse, or the limit (not done) if never before the run ended."""
+    col = f"all_under_{radius}_s"
+    done = np.array([r.get(col, "") != "" for r in rows])
+    t = np.array([float(r[col]) if d else limit_s for r, d in zip(rows, done, strict=True)])
+    return t, done
+
+
+def reason_counts(rows: Rows) -> dict[str, int]:
+    """How many tags (over the runs) were reported for each reason, and never ('')."""
+    counts = dict.fromkeys((*REASONS, ""), 0)
+    for r in rows:
+        for reason in r.get("reasons", "").split(";"):
+            counts[reason if reason in counts else ""] += 1
+    return counts
+
+
+def _finish_section(rows: Rows, ident: dict[str, Any]) -> list[str]:
+    """Time to radius (all tags under 50 / 75 / 100 m at once against time) and why tags were
+    reported; format 5 runs.csv only."""
+    if not any("all_under_50_s" in r for r in rows):  # format 4 and earlier
+        return []
+    out = ["## Time to radius and reporting", "",
+           "Share of runs with every tag's 95 % radius at most R at once, by time (a run that "
+           "ended, all tags reported, counts as it ended), with the Kaplan-Meier median time:",
+           "", "| Model | Method | R (m) | " + " | ".join(
+               f"by {t:g} s" for t in CURVE_TIMES_S) + " | Median time, KM [95 % CI] (s) |",
+           "|---|---|---:|" + "---:|" * (len(CURVE_TIMES_S) + 1)]
+    for model, method, sel in groups(rows):
+        limit = limit_of(ident, model)
+        for radius in UNDER_RADII:
+            t, done = under_times(sel, radius, limit)
+            cells = [success_ci(int(np.sum(done & (t <= c + 1e-9))), len(sel)).text(2)
+                     for c in CURVE_TIMES_S]
+            out.append(f"| {MODEL_LABELS[model]} | {method_label(method)} | {radius} | "
+                       + " | ".join(cells)
+                       + f" | {km_median(t, done, limit).text(beyond=f'> {limit:g}')} |")
+    out += ["", "Why tags were reported (tags over all runs; 'never': not reported before the "
+            "limit), and when the last one was:", "",
+            "| Model | Method | Tags | Reached | Stalled | Budget | Never | All reported "
+            "[95 % CI] | All reported, median (s) | Final radius median (m) |",
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for model, method, sel in groups(rows):
+        c = reason_counts(sel)
+        ends = floats(r.get("all_reported_s", "") for r in sel)
+        final = floats(x for r in sel for x in r.get("final_radii_m", "").split(";"))
+        out.append(
+            f"| {MODEL_LABELS[model]} | {method_label(method)} | {sum(c.values())} | "
+            f"{c['reached']} | {c['stalled']} | {c['budget']} | {c['']} | "
+            f"{success_ci(int(ends.size), len(sel)).text(2)} | "
+            f"{np.median(ends) if ends.size else float('nan'):.0f} | "
+            f"{np.median(final) if final.size else float('nan'):.1f} |")
     return out

@@ -311,11 +311,43 @@ class Unresolved(BaseModel):
     existence: float = f("Probability that the tag is there at all.", ge=0.0, le=1.0)
 
 
+class TagReport(BaseModel):
+    """Why and when a tag was reported (in a result record), and its radius over time."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, strict=True, allow_inf_nan=False)
+
+    reason: Literal["reached", "stalled", "budget"] = f(
+        "reached: its radius dropped to localisation.radius_m; stalled: it shrank by less than "
+        "localisation.stall_min_shrink_percent over localisation.stall_window_s of work on it; "
+        "budget: it was worked on for localisation.tag_budget_s.")
+    after_s: float = f("When it was reported, seconds after the mission started searching.", "s")
+    radius_m: Num = f("Its 95 % radius when reported.", "m")
+    worked_s: float = f("How long it had been the planning target.", "s", ge=0.0)
+    radius_over_time: list[list[float | None]] = f(
+        "[after_s, radius_m] pairs every 10 s of the search and at the report, then to the end "
+        "(the estimate keeps updating after the report).")
+
+
+class TagReported(Record):
+    """A tag was reported: it reached the radius, stalled or spent its budget; the planner
+    moves on to the others (core.mission_core.ReportRule)."""
+
+    type: Literal["tag_reported"]
+    tag: str = f("Tag id.")
+    reason: Literal["reached", "stalled", "budget"] = f("Why (see the result's reports).")
+    after_s: float = f("Seconds after the mission started searching.", "s")
+    east_m: float = f("Estimated position east.", "m", "ENU about home")
+    north_m: float = f("Estimated position north.", "m", "ENU about home")
+    radius_m: Num = f("95 % radius.", "m")
+    worked_s: float = f("How long it had been the planning target.", "s", ge=0.0)
+
+
 class Result(Record):
     """Last record of a flight that ended in order: how it ended."""
 
     type: Literal["result"]
-    end_reason: str = f("Why the mission ended (all_localised, max_mission_time, operator_rtl, "
+    end_reason: str = f("Why the mission ended (all_localised, all_reported, max_mission_time, "
+                        "operator_rtl, "
                         "takeover...).")
     exit_code: int = f("The command's exit code: 0 success, 1 failed or aborted, 2 refused "
                        "before arming for the vehicle's set-up (parameters, geofence).", ge=0)
@@ -323,6 +355,9 @@ class Result(Record):
     unresolved: dict[str, Unresolved] | None = f(
         "The last estimate of every tag not localised, by id (absent before 2026-11).",
         default=None)
+    reports: dict[str, TagReport] | None = f(
+        "Every reported tag by id: why, when, its radius over time (absent before reporting "
+        "existed, and in follow missions).", default=None)
     rejects: Counts = f("Rejected datagrams per reason, whole flight.")
     duration_s: float = f("Mission duration.", "s", ge=0.0)
     error: str | None = f("The error that ended the mission, if one did.", default=None)
@@ -334,7 +369,8 @@ class Result(Record):
 
 FLIGHT_RECORDS: tuple[type[Record], ...] = (
     MissionHeader, Telemetry, Detection, Radio, ReceiverClockRecord, Estimate, Cloud, Plan,
-    Setpoint, Reject, Event, Error, OperatorWarning, StatusText, Clock, LogLoss, Result)
+    Setpoint, Reject, Event, Error, OperatorWarning, StatusText, Clock, LogLoss, TagReported,
+    Result)
 
 
 # -- simulator truth ----------------------------------------------------------------------

@@ -36,6 +36,8 @@ class TagView:
     last_rssi_db: float | None
     cloud_en_m: tuple[tuple[float, float], ...] = ()
     truth_en_m: tuple[float, float] | None = None
+    reported: str | None = None
+    """Why the tag was reported (reached, stalled, budget), None while it is worked on."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -264,6 +264,7 @@ class MissionController:
             ctx.log.write("result", t=ctx.clock.now(), end_reason=result.end_reason,
                           exit_code=result.exit_code, localised=result.localised,
                           unresolved=result.unresolved,
+                          reports=result.reports or None,
                           rejects=result.rejects, duration_s=result.duration_s,
                           error=result.error, takeover=result.takeover,
                           counters=result.counters)

@@ -439,8 +439,11 @@ def summary_text(result: MissionResult) -> str:
                      f"({info['lat']:.6f}, {info['lon']:.6f}) +-{info['radius_m']:.0f} m{err}")
     for tid, info in sorted(result.unresolved.items()):
         err = f", error {info['error_m']:.1f} m" if "error_m" in info else ""
+        rep = result.reports.get(tid)
+        why = (f"; reported {rep['reason']} after {rep['after_s']:.0f} s at "
+               f"+-{rep['radius_m']:.0f} m") if rep else ""
         lines.append(f"  {tid}: not localised; last estimate ({info['lat']:.6f}, "
-                     f"{info['lon']:.6f}) +-{info['radius_m']:.0f} m (95 %){err}")
+                     f"{info['lon']:.6f}) +-{info['radius_m']:.0f} m (95 %){err}{why}")
     if result.rejects:
         lines.append("  radio rejects: " + ", ".join(f"{k}={v}" for k, v in result.rejects.items()))
     lines.append(f"  log: {result.log_dir}")

@@ -29,6 +29,8 @@ class MissionState(enum.StrEnum):
 class EndReason(enum.StrEnum):
     # success (exit 0 once landed and disarmed)
     ALL_LOCALISED = "all_localised"
+    ALL_REPORTED = "all_reported"
+    """Every tag reported, some before reaching the radius (stalled or budget)."""
     FOLLOW_COMPLETE = "follow_complete"
     # the operator (UI key, Ctrl-C) or the system (signals)
     OPERATOR_ABORT = "operator_abort"
@@ -67,7 +69,8 @@ class EndReason(enum.StrEnum):
     """An unexpected exception (the error is in the result record)."""
 
 
-SUCCESS = frozenset({EndReason.ALL_LOCALISED, EndReason.FOLLOW_COMPLETE})
+SUCCESS = frozenset({EndReason.ALL_LOCALISED, EndReason.ALL_REPORTED,
+                     EndReason.FOLLOW_COMPLETE})
 SETUP_REFUSED = frozenset({EndReason.VEHICLE_PARAMS_UNSAFE, EndReason.GEOFENCE_REFUSED,
                            EndReason.GEOFENCE_ON_VEHICLE})
 """Refusals before arming that the operator fixes on the vehicle or in the mission: exit 2."""
@@ -116,6 +119,8 @@ class MissionResult:
     counters: dict[str, int] = field(default_factory=dict)
     unresolved: dict[str, dict[str, float]] = field(default_factory=dict)
     """The last estimate of every tag not localised (where to look, within its 95 % radius)."""
+    reports: dict[str, dict[str, Any]] = field(default_factory=dict)
+    """Every reported tag: reason, after_s, radius_m, worked_s, radius_over_time."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -47,6 +47,7 @@ def build_snapshot(c: MissionContext) -> MissionSnapshot:
             cov_pos_m2=(float(est.cov_pos[0, 0]), float(est.cov_pos[0, 1]),
                         float(est.cov_pos[1, 1])),
             localised=loc is not None,
+            reported=(rep.reason if (rep := c.core.reported.get(tid)) is not None else None),
             localised_at_s=None if loc is None else loc.t - (c.t_airborne or c.t_start),
             detections_last_min=recent, detections_total=c.core.detections[tid],
             last_rssi_db=c.core.last_rssi_db.get(tid),
@@ -101,6 +102,11 @@ def build_result(c: MissionContext) -> MissionResult:
         unresolved[tid] = {"lat": float(lat), "lon": float(lon), "east_m": float(est.mean[0]),
                            "north_m": float(est.mean[1]), "radius_m": float(est.radius_m),
                            "existence": float(est.existence)}
+    t0 = c.t_airborne or c.t_start
+    reports = {tid: {"reason": rep.reason, "after_s": rep.t - t0,
+                     "radius_m": float(rep.estimate.radius_m), "worked_s": rep.worked_s,
+                     "radius_over_time": radius_over_time(c.core.radius_log[tid], t0, rep.t)}
+               for tid, rep in c.core.reported.items()} if c.mission.kind == "localise" else {}
     takeover = None
     if c.takeover is not None:
         tk = c.takeover
@@ -117,7 +123,25 @@ def build_result(c: MissionContext) -> MissionResult:
     return MissionResult(
         end_reason=str(reason), exit_code=0 if ok else 2 if reason in SETUP_REFUSED else 1,
         localised=localised,
-        unresolved=unresolved,
+        unresolved=unresolved, reports=reports,
         duration_s=c.clock.now() - c.t_start,
         rejects=dict(getattr(c.receiver, "rejects", {})), events=list(c.events),
         error=c.error, takeover=takeover, counters=counters)
+
+
+RADIUS_EVERY_S = 10.0
+"""Spacing of the radius-over-time samples in the result record."""
+
+
+def radius_over_time(log: list[tuple[float, float]], t0: float,
+                     t_report: float) -> list[list[float | None]]:
+    """[after_s, radius_m] every ``RADIUS_EVERY_S`` of a tag's (t, radius) log, plus the
+    report's own sample and the last one; radii rounded to 0.1 m, null if not finite."""
+    out: list[list[float | None]] = []
+    next_t = -math.inf
+    for i, (t, r) in enumerate(log):
+        if t >= next_t or t == t_report or i == len(log) - 1:
+            out.append([round(t - t0, 1), round(r, 1) if math.isfinite(r) else None])
+            if t >= next_t:
+                next_t = t + RADIUS_EVERY_S
+    return out

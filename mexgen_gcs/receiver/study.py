@@ -164,12 +164,47 @@ def power_bias(snrs_db: Sequence[float], pulses_per_tag: int, seed: int = 2) -> 
     return {"rows": rows}
 
 
-def report(quick: bool = False) -> str:
+def study(quick: bool = False) -> tuple[dict[str, Any], list[dict[str, Any]], dict[str, Any]]:
+    """The three measurements: Pd against SNR, false alarms (noise, CW), power bias."""
     n = 12 if quick else 50
     pd = pd_curve([float(v) for v in np.arange(-4.0, 8.1, 1.0)], n)
     fa_s = 100.0 if quick else 1800.0
     fa = [false_alarms(fa_s), false_alarms(fa_s, cw=True)]
     pb = power_bias([4.0, 6.0, 10.0, 15.0, 20.0, 30.0], n)
+    return pd, fa, pb
+
+
+def plot(pd: dict[str, Any], pb: dict[str, Any], path: str) -> None:
+    """Pd measured against the detector's theory, and the power error against SNR (PNG)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    snr = [r["snr_db"] for r in pd["rows"]]
+    ax1.plot(snr, [r["pd_theory"] for r in pd["rows"]], "-",
+             label="theory (whole pulse in a window)")
+    ax1.plot(snr, [r["pd"] for r in pd["rows"]], "o", label="measured")
+    ax1.set(xlabel="SNR in the tag's channel (dB)", ylabel="probability of detection",
+            title=f"Pd at {pd['pfa_per_s']:g} false alarms per tag-second")
+    ax1.grid(True, alpha=0.3)
+    ax1.legend()
+    rows = pb["rows"]
+    ax2.errorbar([r["snr_db"] for r in rows], [r["bias_db"] for r in rows],
+                 yerr=[r["std_db"] for r in rows], fmt="o", capsize=3)
+    ax2.axhline(0.0, color="grey", lw=0.8)
+    ax2.set(xlabel="SNR in the tag's channel (dB)", ylabel="power error (dB): mean +- spread",
+            title="Calibrated power against the truth")
+    ax2.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def report(quick: bool = False, plot_path: str | None = None) -> str:
+    pd, fa, pb = study(quick)
+    if plot_path is not None:
+        plot(pd, pb, plot_path)
     lines = [f"Detector: {pd['bins']} bins x {pd['window_frames']} frames ({pd['dof']} degrees "
              f"of freedom), threshold {pd['threshold_factor']:.1f} x the per-bin noise at "
              f"{pd['pfa_per_s']:g} false alarms per tag-second.", "",
@@ -198,8 +233,10 @@ def report(quick: bool = False) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m mexgen_gcs.receiver.study")
     p.add_argument("--quick", action="store_true", help="fewer pulses and seconds")
+    p.add_argument("--plot", metavar="PNG", default=None,
+                   help="also draw Pd against SNR (with theory) and the power error to this PNG")
     args = p.parse_args(argv)
-    print(report(args.quick))
+    print(report(args.quick, args.plot))
     return 0
 
 

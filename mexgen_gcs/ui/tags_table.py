@@ -1,6 +1,8 @@
 """The tags table: per tag its frequency, existence probability, estimate (lat/lon), 95 %
-uncertainty radius, detections in the last minute, last RSSI and whether (and when) it was
-localised. Selecting a row asks for the map to centre on that tag (``TagSelected``).
+uncertainty radius, detections in the last minute, last RSSI, whether (and when) it was
+localised and whether it was reported (reached, stalled, budget: the vehicle has moved on from
+it; core.mission_core.ReportRule). Selecting a row asks for the map to centre on that tag
+(``TagSelected``).
 
 Positions WGS84 degrees; the ENU estimate travels in the message for the map.
 """
@@ -16,7 +18,10 @@ from textual.widgets import DataTable
 from mexgen_gcs.io.snapshot import TagView
 from mexgen_gcs.ui.format import freq_mhz, num
 
-COLUMNS = ("Tag", "MHz", "P(exist)", "Lat", "Lon", "±m", "det/min", "RSSI dB", "Localised")
+COLUMNS = ("Tag", "MHz", "P(exist)", "Lat", "Lon", "±m", "det/min", "RSSI dB", "Localised",
+           "Reported")
+
+REPORT_STYLES = {"reached": "bold green", "stalled": "bold yellow", "budget": "bold yellow"}
 
 
 def tag_row(tag: TagView) -> tuple[Text, ...]:
@@ -37,6 +42,8 @@ def tag_row(tag: TagView) -> tuple[Text, ...]:
         Text(str(tag.detections_last_min), justify="right"),
         Text(num(tag.last_rssi_db, ".1f"), justify="right"),
         loc,
+        Text(tag.reported, style=REPORT_STYLES.get(tag.reported, "")) if tag.reported
+        else Text("-", style="dim"),
     )
 
 

@@ -7,7 +7,7 @@ import pytest
 
 from mexgen_gcs.core.area import SearchArea
 from mexgen_gcs.core.bernoulli import FilterConfig
-from mexgen_gcs.core.mission_core import MissionCore, VehicleState
+from mexgen_gcs.core.mission_core import MissionCore, ReportRule, VehicleState
 from mexgen_gcs.core.motion import make_motion_model
 from mexgen_gcs.core.radio import RadioModel
 
@@ -163,3 +163,86 @@ def _fly_one(core, k, rng, radius=350.0):
         if RADIO.detect(p, rng):
             core.add_detection(tid, float(RADIO.measure(p, rng)), rx, yaw)
     return core.pulse(float(k), rx, yaw, listening=list(TAGS))
+
+
+# -- reporting: reached, stalled, budget ------------------------------------------------------
+
+def _idle(core, seconds, t0=0.0):
+    """Pulses with the radio not known alive: the filters only predict, radii stay put."""
+    reports = []
+    for k in range(1, seconds + 1):
+        reports.append(core.pulse(t0 + k, np.array([0.0, 0.0, 50.0]), 0.0, listening=None))
+    return reports
+
+
+def test_budget_reports_the_worked_tag_then_moves_on_to_the_next():
+    core = _core(report_rule=ReportRule(tag_budget_s=30.0))
+    first = core.targets(np.zeros(2))
+    assert len(first) == 1
+    reports = _idle(core, 30)
+    newly = [r for rep in reports for r in rep.newly_reported]
+    assert [(r.tag_id, r.reason) for r in newly] == [(first[0], "budget")]
+    assert newly[0].t == 30.0 and newly[0].worked_s == pytest.approx(30.0)
+    assert math.isfinite(newly[0].estimate.radius_m)
+    (second,) = core.targets(np.zeros(2))
+    assert second != first[0]  # the planner moves on
+    assert core.worked_s[second] == 0.0 and not core.all_reported()
+    _idle(core, 30, t0=30.0)
+    assert core.all_reported() and core.targets(np.zeros(2)) == ()
+    assert core.reported[second].reason == "budget" and core.localised == {}
+    assert len(core.radius_log[second]) == 60
+
+
+def test_a_radius_that_does_not_shrink_stalls_after_the_window():
+    core = _core(report_rule=ReportRule(stall_window_s=20.0, stall_min_shrink=0.1))
+    reports = _idle(core, 25)
+    newly = [(rep.t, r.reason) for rep in reports for r in rep.newly_reported]
+    # the first window starts at the first pulse (no earlier radius to compare with)
+    assert newly == [(21.0, "stalled")]
+    (other,) = core.targets(np.zeros(2))
+    _idle(core, 20, t0=25.0)  # its window starts at its radius before its first pulse
+    # worked from t = 22 on
+    assert core.reported[other].reason == "stalled" and core.reported[other].t == 41.0
+
+
+def test_a_shrinking_radius_is_not_stalled_and_reaches():
+    core = _core(report_rule=ReportRule(stall_window_s=60.0, stall_min_shrink=0.1,
+                                        tag_budget_s=1000.0))
+    _fly(core, 240, np.random.default_rng(1))
+    assert core.all_reported()
+    assert {t: r.reason for t, r in core.reported.items()} == {"A": "reached", "B": "reached"}
+    for tid, rep in core.reported.items():
+        assert rep.t == core.localised[tid].t
+
+
+def test_without_a_rule_a_tag_is_reported_exactly_when_localised():
+    core = _core()
+    assert not core.report_rule.active
+    _fly(core, 240, np.random.default_rng(1))
+    assert set(core.reported) == set(core.localised)
+    assert all(r.reason == "reached" for r in core.reported.values())
+    idle = _core()
+    _idle(idle, 400)
+    assert idle.reported == {} and len(idle.targets(np.zeros(2))) == 1
+
+
+def test_a_stalled_tag_later_under_the_radius_keeps_its_report():
+    core = _core(report_rule=ReportRule(stall_window_s=5.0, stall_min_shrink=0.5))
+    _idle(core, 10)
+    assert {r.reason for r in core.reported.values()} == {"stalled"}
+    _fly(core, 240, np.random.default_rng(1))
+    assert all(r.reason == "stalled" for r in core.reported.values())
+    assert core.localised == {}  # what was reported stands
+
+
+def test_follow_missions_are_never_reported():
+    core = _core(kind="follow", follow_tag="A", report_rule=ReportRule(tag_budget_s=5.0))
+    _idle(core, 10)
+    assert core.reported == {} and core.targets(np.zeros(2)) == ("A",)
+
+
+@pytest.mark.parametrize("kw", [{"stall_window_s": 0.0}, {"stall_min_shrink": 1.0},
+                                {"stall_min_shrink": -0.1}, {"tag_budget_s": -1.0}])
+def test_bad_report_rules_are_refused(kw):
+    with pytest.raises(ValueError):
+        ReportRule(**kw)

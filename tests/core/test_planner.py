@@ -292,3 +292,21 @@ def test_uncertain_offsets_make_every_pulse_noisier():
     b = plan([unsure], HOVER, BIG_AREA, RadioModel(), config, np.random.default_rng(0))
     assert np.all(b.rewards < 0.8 * a.rewards)
     assert a.heading_deg == b.heading_deg == 0.0  # still towards the tag
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_toward_target_adds_the_heading_at_the_estimate_scored_alike(method):
+    """A belief at a bearing between two fixed headings: the extra action points at it, every
+    generator scores it like the others, and with it the planner flies (nearly) straight at
+    the belief rather than 11 deg or more off it."""
+    h = math.radians(112.0)
+    belief = cluster(350.0 * np.array([math.sin(h), math.cos(h)]), seed=1)
+    plain = plan([belief], HOVER, BIG_AREA, SHORT_RANGE, small_config(method),
+                 np.random.default_rng(0))
+    extra = plan([belief], HOVER, BIG_AREA, SHORT_RANGE,
+                 small_config(method, toward_target=True), np.random.default_rng(0))
+    assert plain.headings_deg.shape == (8,) and extra.headings_deg.shape == (9,)
+    bearing = math.degrees(math.atan2(*belief.states[:, :2].mean(axis=0)))
+    assert extra.headings_deg[8] == pytest.approx(bearing % 360.0)
+    assert np.all(np.isfinite(extra.rewards))
+    assert abs(extra.heading_deg - bearing) < abs(plain.heading_deg - bearing)

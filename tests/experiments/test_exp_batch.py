@@ -217,7 +217,7 @@ def test_cli_preset_field_flies_the_mission_defaults(tmp_path: Path,
                  "pim", "--starts", "1", "--reps", "1", "--quick", "--workers", "1", "--out",
                  str(tmp_path)]) == 0
     ident = json.loads((tmp_path / "experiment.json").read_text())
-    assert ident["preset"] == "field-quick" and ident["format"] == 4
+    assert ident["preset"] == "field-quick" and ident["format"] == 5
     mission = yaml.safe_load((tmp_path / "missions" / "cv-pim.yaml").read_text())
     assert mission["radio"] == {"front_back_db": 3.0, "sensitivity_db": -60.0,
                                 "detection_spread_db": 2.0, "pd_max": 0.95,

@@ -133,3 +133,16 @@ def test_panel_texts(snapshot):
     assert planner_text(None, "mexgen", 40, 0.0).plain.startswith("mexgen  no plan yet")
     cells = [c.plain for c in tag_row(snapshot.tags[2])]
     assert cells[0] == "T3" and cells[6] == "0" and cells[7] == "--" and cells[8] == "no"
+
+
+def test_tags_table_says_why_a_tag_was_reported(snapshot):
+    from dataclasses import replace
+
+    from mexgen_gcs.ui.tags_table import COLUMNS
+
+    tag = snapshot.tags[2]
+    col = COLUMNS.index("Reported")
+    assert tag_row(tag)[col].plain == "-"
+    cell = tag_row(replace(tag, reported="stalled"))[col]
+    assert cell.plain == "stalled" and "yellow" in str(cell.style)
+    assert tag_row(replace(tag, reported="reached"))[col].plain == "reached"

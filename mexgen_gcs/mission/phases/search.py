@@ -88,6 +88,16 @@ async def filter_cadence(ctx: MissionContext) -> None:
                       after_s=round(ctx.mission_elapsed_s(rec.t), 1),
                       lat=round(float(lat), 7), lon=round(float(lon), 7),
                       radius_m=round(rec.estimate.radius_m, 1))
+        for rep in report.newly_reported:
+            ctx.log.write("tag_reported", t=t, tag=rep.tag_id, reason=rep.reason,
+                          after_s=round(ctx.mission_elapsed_s(rep.t), 1),
+                          east_m=float(rep.estimate.mean[0]),
+                          north_m=float(rep.estimate.mean[1]),
+                          radius_m=rep.estimate.radius_m, worked_s=round(rep.worked_s, 1))
+            if rep.reason != "reached":
+                ctx.event("tag_reported", level=logging.WARNING, tag=rep.tag_id,
+                          reason=rep.reason, radius_m=round(rep.estimate.radius_m, 1),
+                          worked_s=round(rep.worked_s, 1))
         check_done(ctx, t)
 
 
@@ -99,6 +109,8 @@ def check_done(ctx: MissionContext, t: float) -> None:
             ctx.finish(EndReason.FOLLOW_COMPLETE)
     elif ctx.core.all_localised():
         ctx.finish(EndReason.ALL_LOCALISED)
+    elif ctx.core.all_reported():
+        ctx.finish(EndReason.ALL_REPORTED)
 
 
 # -- planner -------------------------------------------------------------------------------------
