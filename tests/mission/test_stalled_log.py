@@ -68,7 +68,10 @@ async def test_setpoints_keep_their_rate_while_the_log_disk_stalls(tmp_path):
         def __getattr__(self, name: str) -> Any:
             return getattr(self.real, name)
 
-    f = await fly(tmp_path / "log", fake, wrap_log=Writer, requests=(("offboard", 200.0, "rtl"),))
+    # the report rules off: the flight must last until the operator's return, 200 s in
+    f = await fly(tmp_path / "log", fake, wrap_log=Writer, requests=(("offboard", 200.0, "rtl"),),
+                  overrides={"localisation.stall_window_s": None,
+                             "localisation.tag_budget_s": None})
     assert f.result.end_reason == "operator_rtl", f.result.events[-12:]
     # the stall began when the writer thread reached offboard_started: the setpoints of the
     # STALL_S after it (the loop had queued that record a moment before)
