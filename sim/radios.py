@@ -189,14 +189,8 @@ class RadioSim:
         send = detected and not dropped and not self._silent()
         t_sent = self._t_sent(t)
         self.stats["pulses"] += 1
-        self.truth.write(
-            self.unix_of(t), "pulse", tag=tag.id, freq_hz=tag.freq_hz,
-            x_m=round(float(xy[0]), 3), y_m=round(float(xy[1]), 3),
-            rx_enu_m=[round(pose.east_m, 3), round(pose.north_m, 3), round(pose.up_m, 3)],
-            rx_yaw_deg=round(pose.yaw_deg, 3),
-            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], tag_z]))), 3),
-            power_db=power, detected=detected, rssi_db=rssi, dropped=dropped, sent=send,
-            t_sent=t_sent if send else None)
+        self._truth_pulse(t, tag, xy, tag_z, pose, power, detected=detected, rssi_db=rssi,
+                          dropped=dropped, sent=send, t_sent=t_sent if send else None)
         out: list[bytes] = []
         if send:
             assert rssi is not None
@@ -224,14 +218,21 @@ class RadioSim:
             assert self.pulse_sink is not None
             self.pulse_sink(i, t, power)
         self.stats["pulses"] += 1
+        self._truth_pulse(t, tag, xy, 0.0, pose, power, detected=None, rssi_db=None,
+                          dropped=False, sent=not silent, t_sent=None)
+
+    def _truth_pulse(self, t: float, tag: Any, xy: Any, tag_z: float, pose: ReceiverPose,
+                     power: float, **outcome: Any) -> None:
+        """The truth file's record of one pulse: where tag and receiver were, its power, and
+        what became of it (``outcome``: detected, rssi_db, dropped, sent, t_sent)."""
+        rx = np.array([pose.east_m, pose.north_m, pose.up_m])
         self.truth.write(
             self.unix_of(t), "pulse", tag=tag.id, freq_hz=tag.freq_hz,
             x_m=round(float(xy[0]), 3), y_m=round(float(xy[1]), 3),
             rx_enu_m=[round(pose.east_m, 3), round(pose.north_m, 3), round(pose.up_m, 3)],
             rx_yaw_deg=round(pose.yaw_deg, 3),
-            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], 0.0]))), 3),
-            power_db=power, detected=None, rssi_db=None, dropped=False, sent=not silent,
-            t_sent=None)
+            distance_m=round(float(np.linalg.norm(rx - np.array([xy[0], xy[1], tag_z]))), 3),
+            power_db=power, **outcome)
 
     def _clutter(self, i: int, t: float, pose: ReceiverPose, source: str) -> list[bytes]:
         tag = self.tags[i]

@@ -75,30 +75,29 @@ with two workers flying side by side lost its radio port that way between pick a
 _PORT_RNG = np.random.default_rng()
 
 
-def free_udp_port() -> int:
-    """A UDP port on loopback that was free a moment ago, outside the ephemeral range."""
+def free_port(kind: socket.SocketKind = socket.SOCK_DGRAM) -> int:
+    """A loopback port (UDP, or TCP with SOCK_STREAM) that was free a moment ago, outside the
+    ephemeral range."""
     for _ in range(500):
         port = int(_PORT_RNG.integers(*_FREE_PORTS))
-        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        with socket.socket(socket.AF_INET, kind) as s:
             try:
                 s.bind(("127.0.0.1", port))
             except OSError:
                 continue
             return port
-    raise OSError(f"no free UDP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
+    name = "TCP" if kind == socket.SOCK_STREAM else "UDP"
+    raise OSError(f"no free {name} port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
+
+
+def free_udp_port() -> int:
+    """A UDP port on loopback that was free a moment ago, outside the ephemeral range."""
+    return free_port(socket.SOCK_DGRAM)
 
 
 def free_tcp_port() -> int:
     """A TCP port on loopback that was free a moment ago, outside the ephemeral range."""
-    for _ in range(500):
-        port = int(_PORT_RNG.integers(*_FREE_PORTS))
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
-            return port
-    raise OSError(f"no free TCP port on loopback in {_FREE_PORTS[0]}-{_FREE_PORTS[1]}")
+    return free_port(socket.SOCK_STREAM)
 
 
 def apply_overrides(mission: Mission, overrides: Mapping[str, Any] | None) -> Mission:
