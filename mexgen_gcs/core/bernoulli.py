@@ -140,6 +140,9 @@ class BernoulliFilter:
         tag_prior: TagRadioPrior | None = None,
     ) -> None:
         self.motion = motion
+        # roughen only the state columns the model moves (a static or random-walk tag's
+        # velocity stays zero); models that do not say move them all
+        self._rough_dims = int(getattr(motion, "moving_dims", 4))  # (east, north, v_e, v_n)
         self.radio = radio
         self.area = area
         self.config = config
@@ -284,7 +287,8 @@ class BernoulliFilter:
             mean, cov = (_NO_ROWS2, _NO_ROWS3) if belief is None else (belief.mean[sl],
                                                                        belief.cov[sl])
             log_mass = resample_roughen(self.log_w[sl], self.states[sl], self.modes[sl], mean,
-                                        cov, self.config.roughening_k, self.rng)
+                                        cov, self.config.roughening_k, self._rough_dims,
+                                        self.rng)
             mass = log_mass if math.isfinite(log_mass) else -math.log(step)
             self.log_w[sl] = mass - math.log(self.log_w[sl].shape[0])
         self.log_w, _ = normalise_log_weights(self.log_w)

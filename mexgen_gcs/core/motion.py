@@ -88,6 +88,8 @@ class RandomWalk:
     std_m_per_sqrt_s: float = 1.0
     n_modes: int = 1
     speed_max_m_s: float = 0.0
+    moving_dims: int = 2
+    """State columns the model moves: east, north (the velocity columns stay zero)."""
 
     def propagate(
         self, state: FloatArray, mode: ModeArray, dt_s: float, rng: np.random.Generator
