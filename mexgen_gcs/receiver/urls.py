@@ -18,8 +18,15 @@ EXAMPLES = ("rtltcp://127.0.0.1:1234", "rtlsdr://0", "soapy://driver=airspy",
             "file:rec.sigmf-meta", "file:x.cu8?rate=2.4e6&centre=150.1e6")
 
 
+def check_url(url: str) -> None:
+    """Refuse a source URL of no known kind, before anything is started (SourceError)."""
+    if not url.startswith(("rtltcp://", "rtlsdr://", "soapy://", "file:")):
+        raise SourceError(f"source {url!r}: unknown kind; expected one of " + ", ".join(EXAMPLES))
+
+
 def open_source(url: str) -> IQSource:
     """Open the source a URL names; SourceError says what is wrong and what is expected."""
+    check_url(url)
     expected = "expected one of " + ", ".join(EXAMPLES)
     if url.startswith("rtltcp://"):
         from mexgen_gcs.receiver.rtltcp import RtlTcpSource

@@ -31,6 +31,8 @@ from mexgen_gcs.mission.run import (
     summary_text,
 )
 from mexgen_gcs.receiver.run import ReceiveOptions
+from mexgen_gcs.receiver.sources import SourceError
+from mexgen_gcs.receiver.urls import check_url
 
 
 def _ui_runner(args: argparse.Namespace) -> MissionRunner | None:
@@ -120,6 +122,11 @@ def cmd_fly(args: argparse.Namespace) -> int:
     clock = VehicleClock(fixed_rate=getattr(args, "time_scale", None))
     iq = None
     if getattr(args, "iq_source", None):
+        try:
+            check_url(args.iq_source)
+        except SourceError as exc:
+            print(f"--iq-source: {exc}", file=sys.stderr)
+            return 2
         host = radio.removeprefix("udp://").rpartition(":")
         send_to = f"udp://127.0.0.1:{host[2]}" if host[0] in ("0.0.0.0", "") else radio
         iq = IqReceiverSpec(args.iq_source, ReceiveOptions(

@@ -103,3 +103,13 @@ def test_hardware_sources_say_what_is_missing():
             open_source("soapy://driver=rtlsdr")
     with pytest.raises(SourceError, match=r"rtlsdr://7: (pyrtlsdr is not installed|cannot open)"):
         open_source("rtlsdr://7")  # no dongle here (or no pyrtlsdr): a message, not a crash
+
+
+def test_fly_refuses_an_iq_source_of_no_known_kind_before_connecting(tmp_path, capsys):
+    from mexgen_gcs import cli
+    from tests.receiver.helpers import DEMO
+
+    code = cli.main(["fly", str(DEMO), "--headless", "--iq-source", "bogus://x",
+                     "--connect", "udpin://127.0.0.1:1", "--log-dir", str(tmp_path)])
+    assert code == 2
+    assert "--iq-source: source 'bogus://x': unknown kind" in capsys.readouterr().err
