@@ -301,7 +301,7 @@ class Mission(Section):
             method=method_name(method), samples=p.samples, mc_rollouts=p.mc_rollouts,
             lookahead_s=p.lookahead_s, step_s=p.step_s, discount=p.discount, alpha=p.alpha,
             speed_m_s=self.flight.speed_m_s, max_accel_m_s2=self.flight.max_accel_m_s2,
-            action_cost_weight=p.action_cost_weight)
+            action_cost_weight=p.action_cost_weight, altitudes_m=self.flight.altitudes_m())
 
     def mission_core(self, rng: np.random.Generator, *, area: SearchArea | None = None,
                      t0: float = 0.0, tight_radius_m: float | None = None) -> MissionCore:

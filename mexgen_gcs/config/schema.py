@@ -149,6 +149,26 @@ class Flight(Section):
     max_accel_m_s2: Float = Field(
         4.0, gt=0.0, le=20.0, description="Horizontal acceleration the planner assumes, m/s^2."
     )
+    min_alt_m: Float | None = Field(
+        None, gt=0.0, le=1000.0,
+        description="Lowest altitude above home the planner may descend to, metres: every "
+        "heading is also scored at this altitude and the vehicle climbs or descends to the "
+        "chosen one (closer passes over a tag tell more of where it is). It must be safe over "
+        "the whole area: the ground and anything on it, relative to home. Omitted: the "
+        "search holds alt_m.")
+
+    @model_validator(mode="after")
+    def _min_alt_below(self) -> Flight:
+        if self.min_alt_m is not None and self.min_alt_m > self.alt_m:
+            raise RuleViolation([(("min_alt_m",), f"expected min_alt_m <= alt_m "
+                                  f"({self.alt_m:g}); found {self.min_alt_m:g}")])
+        return self
+
+    def altitudes_m(self) -> tuple[float, ...]:
+        """The planner's action altitudes: () to hold alt_m, else (alt_m, min_alt_m)."""
+        if self.min_alt_m is None or self.min_alt_m == self.alt_m:
+            return ()
+        return (self.alt_m, self.min_alt_m)
 
 
 class TagSpec(Section):

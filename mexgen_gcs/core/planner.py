@@ -140,6 +140,13 @@ class PlannerConfig:
     toward_target: bool = False
     """Add one action: the heading straight at the first planned belief's mean (a close pass
     over the target's estimate), scored like the others by the same generator."""
+    altitudes_m: tuple[float, ...] = ()
+    """Altitudes (above home, m) the actions may fly at: every heading at each of them (the
+    action set grows by that factor), the vehicle climbing or descending at
+    ``climb_rate_m_s`` from where it is. Empty: every action holds the vehicle's altitude (the
+    paper's actions)."""
+    climb_rate_m_s: float = 2.0
+    """Vertical speed of an altitude change in the rollout (the guidance's limit)."""
 
     def __post_init__(self) -> None:
         checks: list[tuple[str, bool, str]] = [
@@ -158,6 +165,9 @@ class PlannerConfig:
              "> 0 or null"),
             ("outcome", self.outcome in ("pooled", "branches"), "pooled or branches"),
             ("max_lookahead_s", self.max_lookahead_s >= self.lookahead_s, ">= lookahead_s"),
+            ("altitudes_m", all(math.isfinite(a) and a > 0.0 for a in self.altitudes_m),
+             "a list of altitudes > 0"),
+            ("climb_rate_m_s", self.climb_rate_m_s > 0.0, "> 0"),
         ]
         for name, ok, need in checks:
             if not ok:
@@ -249,6 +259,13 @@ class PlanResult:
     """(A, H, 2) planned horizontal positions of each action at each look-ahead step."""
     lookahead_s: float = 0.0
     """The look-ahead used (stretched to reach a far belief when ``reach`` is set)."""
+    alts_m: FloatArray | None = None
+    """(A,) the altitude each action flies to (None: the actions hold the altitude)."""
+
+    @property
+    def alt_m(self) -> float | None:
+        """The chosen action's altitude above home, m (None: hold the mission's altitude)."""
+        return None if self.alts_m is None else float(self.alts_m[self.chosen])
 
 
 class Planner:
@@ -286,6 +303,10 @@ class Planner:
         if cfg.toward_target:
             mean_xy = np.asarray(beliefs[0].states)[:, :2].mean(axis=0)
             headings = np.append(headings, compass_bearing_rad(xyz, mean_xy))
+        alts: FloatArray | None = None
+        if cfg.altitudes_m:
+            alts = np.repeat(np.asarray(cfg.altitudes_m, dtype=np.float64), headings.size)
+            headings = np.tile(headings, len(cfg.altitudes_m))
         horizon = cfg.prune_horizon_s if cfg.prune_horizon_s is not None else cfg.lookahead_s
         times = fine_times_s(max(horizon, cfg.steps * cfg.step_s), cfg.step_s)
         fine = vehicle_paths(xyz, v_xy, headings, cfg.speed_m_s, cfg.max_accel_m_s2, times)
@@ -308,9 +329,13 @@ class Planner:
         else:
             active = np.flatnonzero(~pruned)
             gains = np.zeros(active.size)
+            alt_rows: float | FloatArray = float(xyz[2])
+            if alts is not None:
+                alt_rows = altitude_paths_m(float(xyz[2]), alts[active], cfg.climb_rate_m_s,
+                                            step_s * np.arange(1.0, paths.shape[0] + 1.0))
             for group in _groups_of_equal_size(beliefs):
                 per_tag = rollout_gains(
-                    group, paths[:, active], float(xyz[2]), headings[active], self.radio,
+                    group, paths[:, active], alt_rows, headings[active], self.radio,
                     self._table, self.generator, step_s, cfg.discount, cfg.alpha, rng,
                     timing, self._workspace, pooled=cfg.outcome == "pooled",
                 )
@@ -336,7 +361,17 @@ class Planner:
             total_s=time.perf_counter() - t_start,
             paths_m=_frozen(np.ascontiguousarray(paths.transpose(1, 0, 2))),
             lookahead_s=step_s * cfg.steps,
+            alts_m=None if alts is None else _frozen(alts),
         )
+
+
+def altitude_paths_m(alt_m: float, targets_m: FloatArray, climb_rate_m_s: float,
+                     times_s: FloatArray) -> FloatArray:
+    """(H, A) altitudes at ``times_s`` (H,) of a vehicle at ``alt_m`` climbing or descending
+    at ``climb_rate_m_s`` to each action's altitude ``targets_m`` (A,), then holding it."""
+    gap = np.asarray(targets_m, dtype=np.float64)[None, :] - alt_m
+    reach = climb_rate_m_s * np.asarray(times_s, dtype=np.float64)[:, None]
+    return alt_m + np.sign(gap) * np.minimum(np.abs(gap), reach)
 
 
 def plan(

@@ -117,7 +117,7 @@ class PlanningBelief(Protocol):
 def rollout_gains(
     beliefs: Sequence[PlanningBelief],
     paths: FloatArray,
-    alt_m: float,
+    alt_m: float | FloatArray,
     headings_rad: FloatArray,
     radio: RadioModel,
     table: DetectionTable,
@@ -133,7 +133,8 @@ def rollout_gains(
     """Expected discounted information gain of each action for each tag, (T, A) float64.
 
     beliefs: T tags with the same particle count N; paths: (H, A, 2) vehicle east/north at
-    the H look-ahead steps, ``step_s`` apart; headings_rad: (A,). ``pooled``: the outcome
+    the H look-ahead steps, ``step_s`` apart; alt_m: the vehicle's altitude, one for every
+    step and action or (H, A); headings_rad: (A,). ``pooled``: the outcome
     rule, "pooled" if True else "branches" (module docstring). Adds wall times to ``timing``
     (predict, measure, update, reward). Cost O(H T A R N) array work.
     """
@@ -225,8 +226,9 @@ def rollout_gains(
     return value.mean(axis=2)
 
 
-def _pulse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray, alt_m: float,
-                 radio: RadioModel) -> tuple[FloatArray, Float32Array, Float32Array]:
+def _pulse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray,
+                 alt_m: float | FloatArray, radio: RadioModel
+                 ) -> tuple[FloatArray, Float32Array, Float32Array]:
     """Per look-ahead step, tag and action: 1 / (2 R) (H, T, A), and the shadowing
     neighbours' weight (H, T, A) and centroid (H, T, A, 2) (:class:`core.radio_belief.
     PulseNoise`; the last two empty when no tag's filter has a shadowing memory). R is the
@@ -246,7 +248,8 @@ def _pulse_noise(beliefs: Sequence[PlanningBelief], paths: FloatArray, alt_m: fl
             nb_xy[:, i] = centre
         cov = getattr(b, "radio_cov", None)
         if cov is not None:
-            rx = np.concatenate([paths, np.full((*paths.shape[:2], 1), alt_m)], axis=-1)
+            alt = np.broadcast_to(np.asarray(alt_m, dtype=np.float64), paths.shape[:2])
+            rx = np.concatenate([paths, alt[..., None]], axis=-1)
             log_term, _ = radio.geometry(np.asarray(b.states)[:, :2].mean(axis=0), rx, 0.0)
             var[:, i] += np.maximum(cov[0] + 2.0 * cov[1] * log_term + cov[2] * log_term**2, 0.0)
     return 0.5 / var, nb_c, nb_xy

@@ -144,7 +144,8 @@ def run_one(spec: RunSpec) -> RunResult:
     star = StarPasses(orbit_m) if oracle_pattern(spec.method) == "star" and orbit_m else None
     config = replace(mission.planner_config(planner_method), reach=sc.planner_reach,
                      outcome=sc.planner_outcome,  # type: ignore[arg-type]
-                     toward_target=sc.planner_toward_target)
+                     toward_target=sc.planner_toward_target,
+                     altitudes_m=() if sc.min_alt_m is None else (sc.alt_m, sc.min_alt_m))
     planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]
     radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio),
@@ -154,11 +155,13 @@ def run_one(spec: RunSpec) -> RunResult:
     listening = list(tag_ids)
 
     heading_deg: float | None = None
+    target_alt_m = sc.alt_m
     plan_s: list[float] = []
     cpu = time.process_time
     stage = {"filter": 0.0, "planner": 0.0}
 
     def replan(t: float) -> float | None:
+        nonlocal target_alt_m
         c0 = cpu()
         vs = VehicleState(vehicle.xyz_m, vehicle.v_xy_m_s, vehicle.yaw_rad)
         request = core.plan_request(t, vs)
@@ -168,6 +171,8 @@ def run_one(spec: RunSpec) -> RunResult:
         result = planner.plan(request.beliefs, request.vehicle, plan_rng.spawn(1)[0])
         plan_s.append(result.total_s)
         stage["planner"] += cpu() - c0
+        if result.alt_m is not None:
+            target_alt_m = result.alt_m
         return result.heading_deg
 
     def oracle_heading(t: float) -> tuple[float | None, float]:
@@ -216,10 +221,10 @@ def run_one(spec: RunSpec) -> RunResult:
             # the guard predicts the point mass exactly: its velocity, its acceleration limit
             # for speeding up and braking, no latency, the next command after dt_sub
             sp = velocity_setpoint(heading_deg, speed_m_s, (vehicle.east_m, vehicle.north_m),
-                                   vehicle.alt_m, sc.alt_m, area, vehicle.yaw_deg,
+                                   vehicle.alt_m, target_alt_m, area, vehicle.yaw_deg,
                                    (vehicle.v_east_m_s, vehicle.v_north_m_s),
                                    brake_m_s2=sc.max_accel_m_s2, latency_s=0.0, period_s=dt_sub)
-            vehicle.step(sp.v_east_m_s, sp.v_north_m_s, sp.yaw_deg, dt_sub)
+            vehicle.step(sp.v_east_m_s, sp.v_north_m_s, sp.yaw_deg, dt_sub, sp.v_down_m_s)
         tag_xy = truth.states[k, :, :2]
         rx_xyz, yaw_rad = vehicle.xyz_m, vehicle.yaw_rad
         heard = radio.pulse(tag_xy, rx_xyz, yaw_rad)

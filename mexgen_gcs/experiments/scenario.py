@@ -116,6 +116,9 @@ class Scenario:
     quick: bool = False
     """Shortened horizons and particle sets for a smoke run."""
     alt_m: float = 50.0
+    min_alt_m: float | None = None
+    """The lowest altitude the planner may choose (every heading at ``alt_m`` and at this);
+    None: every action holds ``alt_m`` (the paper's actions)."""
     speed_m_s: float = 15.0
     max_accel_m_s2: float = 4.0
     pulse_period_s: float = 1.0

@@ -127,7 +127,8 @@ def truth_for(sc: Scenario, seed: int, start: int) -> Truth:
 
 
 class PointMass:
-    """A multirotor as a point mass at a fixed altitude following velocity commands.
+    """A multirotor as a point mass following velocity commands (horizontal; vertical: the
+    commanded down-velocity, held).
 
     State in plain floats (this runs every control period). ``step`` is exact for a command
     held over dt: the velocity moves towards the (speed-limited) command at ``max_accel``
@@ -157,8 +158,10 @@ class PointMass:
     def yaw_rad(self) -> float:
         return math.radians(self.yaw_deg)
 
-    def step(self, v_east_m_s: float, v_north_m_s: float, yaw_deg: float, dt_s: float) -> None:
-        """Hold the command (east, north m/s; compass yaw) for dt_s seconds."""
+    def step(self, v_east_m_s: float, v_north_m_s: float, yaw_deg: float, dt_s: float,
+             v_down_m_s: float = 0.0) -> None:
+        """Hold the command (east, north, down m/s; compass yaw) for dt_s seconds."""
+        self.alt_m -= v_down_m_s * dt_s
         speed = math.hypot(v_east_m_s, v_north_m_s)
         if speed > self.max_speed_m_s:
             v_east_m_s *= self.max_speed_m_s / speed

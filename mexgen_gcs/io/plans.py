@@ -56,4 +56,6 @@ def plan_record(t: float, r: PlanResult, vehicle_xyz_m: Any) -> Plan:
         chosen_heading_deg=float(r.heading_deg), timing_ms=timing,
         vehicle_en_m=(east if math.isfinite(east) else None,
                       north if math.isfinite(north) else None),
-        all_pruned=bool(r.all_pruned))
+        all_pruned=bool(r.all_pruned),
+        alts_m=None if r.alts_m is None else [float(a) for a in r.alts_m],
+        chosen_alt_m=r.alt_m)

@@ -205,6 +205,10 @@ class Plan(Record):
                                     "ms")
     vehicle_en_m: EN = f("Vehicle position planned from, [east, north].", "m", "ENU about home")
     all_pruned: bool = f("Every action was pruned (the heading points at the area centre).")
+    alts_m: list[float] | None = f("Altitude of each candidate (null: every candidate holds "
+                                   "flight.alt_m).", "m", "above home", default=None)
+    chosen_alt_m: float | None = f("The altitude flown to (null: flight.alt_m).", "m",
+                                   "above home", default=None)
 
 
 class Setpoint(Record):

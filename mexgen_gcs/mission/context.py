@@ -89,6 +89,8 @@ class MissionContext:
         self.error: str | None = None
         self.faults = 0
         self.heading_deg: float | None = None
+        self.target_alt_m: float | None = None
+        """The altitude the last plan chose (None: flight.alt_m)."""
         self.hold_reason: str | None = None
         self.operator_pause = False
         self.link_was_lost = False

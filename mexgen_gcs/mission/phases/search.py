@@ -172,6 +172,8 @@ def apply_plan(ctx: MissionContext, fut: asyncio.Future[Plan]) -> None:
     if ctx.hold_reason in ("planner_error", "planner_overrun"):
         ctx.hold_reason = None
     ctx.heading_deg = outcome.chosen_heading_deg
+    if outcome.chosen_alt_m is not None:
+        ctx.target_alt_m = outcome.chosen_alt_m
     ctx.log.write_record(outcome)
 
 
@@ -214,7 +216,8 @@ async def setpoints(ctx: MissionContext) -> None:
         else:
             rate = ctx.clock.rate
             age_wall = min(max(now - ctx.position_mono, 0.0), 2.0)
-            sp = velocity_setpoint(heading, speed, en, rel_alt, alt, ctx.area, tel.yaw_deg,
+            target_alt = alt if ctx.target_alt_m is None else ctx.target_alt_m
+            sp = velocity_setpoint(heading, speed, en, rel_alt, target_alt, ctx.area, tel.yaw_deg,
                                    (tel.v_east_m_s, tel.v_north_m_s), brake_m_s2=brake,
                                    latency_s=LATENCY_S + rate * age_wall,
                                    period_s=rate * max(max(intervals), 1.0 / SETPOINT_HZ))
