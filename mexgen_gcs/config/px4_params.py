@@ -204,11 +204,17 @@ def _max_vertical(v: float, m: Mission) -> tuple[str, Verdict, str]:
 def _rtl_alt(v: float, m: Mission) -> tuple[str, Verdict, str]:
     """PX4's return climbs to RTL_RETURN_ALT or keeps a higher current height, so a failsafe
     return from the search flies at flight.alt_m either way; only a return started lower (the
-    take-off climb) flies at RTL_RETURN_ALT. A warning, and a refusal below MIN_RTL_ALT_M."""
+    take-off climb, or a search allowed down to flight.min_alt_m) flies at RTL_RETURN_ALT. A
+    warning, and a refusal below MIN_RTL_ALT_M."""
     need = f">= {m.flight.alt_m:g} m (flight.alt_m)"
     if v < MIN_RTL_ALT_M:
         return need, "refuse", (f"a failsafe return at {v:g} m flies into trees and masts; set "
                                 f"RTL_RETURN_ALT >= {m.flight.alt_m:g}")
+    low = m.flight.min_alt_m
+    if low is not None and v < m.flight.alt_m:
+        return need, "warn", (f"below flight.alt_m: a return started while the search flies low "
+                              f"(flight.min_alt_m {low:g} m) flies home at {max(v, low):g} m; "
+                              f"RTL_RETURN_ALT >= {m.flight.alt_m:g} is safer")
     if v < m.flight.alt_m:
         return need, "warn", (f"below flight.alt_m: a return started from the search keeps "
                               f"{m.flight.alt_m:g} m, one started lower (during take-off) "

@@ -396,3 +396,22 @@ def test_a_second_sigterm_with_the_simulator_gone_exits_within_5_s(tmp_path):
     assert len(repeated) == 1 and repeated[0]["type"] == "error"
     result = list(log.of_type("result"))
     assert len(result) == 1 and result[0]["end_reason"] == "signal_repeated"
+
+
+def test_the_planner_flies_low_within_the_missions_bound(tmp_path):
+    """`flight.min_alt_m`: every heading is scored at 50 m and at 20 m; the simulator's
+    vehicle, through MAVSDK, descends when a plan chooses 20 m and never goes below it, and
+    the demo still localises every tag."""
+    result = run_sitl(MISSIONS / "demo.yaml", seed=3, speedup=SPEEDUP, ports=SitlPorts.free(),
+                      log_dir=tmp_path, overrides={"flight.min_alt_m": 20.0})
+    assert result.end_reason == "all_localised", result.events[-10:]
+    assert result.exit_code == 0
+    records = read_flight_log(result.log_dir).records
+    plans = [r for r in records if r["type"] == "plan"]
+    assert plans and all(r["alts_m"] == [50.0] * 8 + [20.0] * 8 for r in plans)
+    low = [r["t"] for r in plans if r["chosen_alt_m"] == 20.0]
+    assert low, "no plan chose the lower altitude"
+    searching = [r["rel_alt_m"] for r in records if r["type"] == "telemetry"
+                 and r["t"] > low[0] + 20.0 and r["mode"] == "OFFBOARD"]
+    assert searching and min(searching) < 30.0
+    assert min(searching) > 20.0 - 3.0  # the P-controlled descent settles on the bound

@@ -62,6 +62,18 @@ def test_sitl_defaults_pass_the_demo() -> None:
     assert {r.name for r in report.warnings} == {"COM_OBL_RC_ACT", "RTL_RETURN_ALT"}
 
 
+def test_a_low_search_says_where_a_return_flies() -> None:
+    """With flight.min_alt_m the search may be below RTL_RETURN_ALT: PX4's return then climbs
+    to it, or keeps the search's height when that is higher; the warning gives that height."""
+    mission = load_mission(DEMO_MISSION).model_copy(update={"flight": load_mission(
+        DEMO_MISSION).flight.model_copy(update={"min_alt_m": 20.0})})
+    (rtl,) = [r for r in evaluate(mission, SITL_DEFAULTS).warnings if r.name == "RTL_RETURN_ALT"]
+    assert "flight.min_alt_m 20 m" in rtl.problem and "flies home at 30 m" in rtl.problem
+    (rtl,) = [r for r in evaluate(mission, {**SITL_DEFAULTS, "RTL_RETURN_ALT": 16.0}).warnings
+              if r.name == "RTL_RETURN_ALT"]
+    assert "flies home at 20 m" in rtl.problem
+
+
 def test_check_connect_prints_the_table(sim_factory: SimFactory) -> None:
     port = free_udp_port()
     sim_factory(mavlink_port=port)
