@@ -12,7 +12,8 @@ CV-IFT model, whose prediction is the motion model's cost, and one on the robust
 belief of a static tag (means and spread of the radio unknowns, 400 heard cells to condition
 each pulse on), whose extra cost is the neighbour search and a second power per particle, and
 the same with the richer action set (``toward_target``: a ninth heading, straight at the
-estimate).
+estimate); and both first rows with altitude actions (``flight.min_alt_m``: the eight headings
+at 50 m and at 20 m, 16 actions).
 The vehicle flies at 50 m, 10 m/s north-east, inside the area. Each (setting, method) keeps
 one Planner, as a mission does; medians, min and max over ``iterations`` timed plans after
 ``warmup`` untimed ones. Targets are
@@ -62,6 +63,8 @@ class Setting:
     spread as noise, and pulses conditioned on 400 heard cells (core.radio_belief)."""
     toward_target: bool = False
     """The richer action set: one more heading, straight at the target's estimate."""
+    altitudes_m: tuple[float, ...] = ()
+    """Altitude actions (flight.min_alt_m): every heading at each of these altitudes."""
 
 
 SETTINGS = (
@@ -71,6 +74,8 @@ SETTINGS = (
     Setting("1 tag cv-ift", 1, 1000, "cv-ift"),
     Setting("1 tag robust", 1, 1000, "static", robust=True),
     Setting("robust +pass", 1, 1000, "static", robust=True, toward_target=True),
+    Setting("1 tag +alt", 1, 1000, "rw", altitudes_m=(50.0, 20.0)),
+    Setting("robust +alt", 1, 1000, "static", robust=True, altitudes_m=(50.0, 20.0)),
 )
 
 
@@ -177,7 +182,8 @@ def run(
         for method in methods:
             config = PlannerConfig(method=method, samples=512, mc_rollouts=8, lookahead_s=20.0,
                                    step_s=1.0, n_headings=8, speed_m_s=10.0,
-                                   toward_target=setting.toward_target)
+                                   toward_target=setting.toward_target,
+                                   altitudes_m=setting.altitudes_m)
             planner = Planner(config, radio, area)
             row = _measure(planner, beliefs, vehicle, iterations, warmup, seed=k)
             target = TARGETS_MS.get((setting.name, method))
