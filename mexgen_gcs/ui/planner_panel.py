@@ -1,5 +1,7 @@
 """The planner panel: method, target tags, the expected reward of each of the 8 headings as
-bars, the chosen heading, planning time by stage and the time to the next re-plan.
+bars, the chosen heading, planning time by stage and the time to the next re-plan. With
+altitude actions (``flight.min_alt_m``) each heading's row shows its best altitude's reward
+and that altitude, and the heading line the altitude flown to.
 
 Headings are compass degrees (0 north, clockwise).
 """
@@ -35,13 +37,19 @@ def planner_text(plan: Plan | None, method: str, width: int, next_plan_in_s: flo
     chosen = plan.chosen_heading_deg
     text.append("heading ", style="dim")
     text.append(f"{chosen:03.0f}° {compass_name(chosen)}", style="bold bright_white")
+    if plan.chosen_alt_m is not None:
+        text.append("  alt ", style="dim")
+        text.append(f"{plan.chosen_alt_m:.0f} m", style="bold bright_white")
     text.append("\n")
-    rewards = [math.nan if r is None else r for r in plan.rewards]  # None: pruned
+    headings, rewards, alts = _best_per_heading(plan)
     fractions = reward_fractions(rewards)
     label_w = 9  # "NE  045° "
     value_w = 9
     bar_w = max(width - label_w - value_w - 2, 4)
-    for h, r, f in zip(plan.headings_deg, rewards, fractions, strict=False):
+    if alts is not None:
+        bar_w = max(bar_w - 5, 4)
+    row_alts: list[float | None] = list(alts) if alts is not None else [None] * len(headings)
+    for h, r, f, a in zip(headings, rewards, fractions, row_alts, strict=False):
         is_chosen = abs(((h - chosen + 180.0) % 360.0) - 180.0) < 1e-6
         style = "bold green" if is_chosen else "green"
         text.append(f"{compass_name(h):<3} {h:03.0f}° ", style="bold" if is_chosen else "")
@@ -51,6 +59,8 @@ def planner_text(plan: Plan | None, method: str, width: int, next_plan_in_s: flo
         else:
             text.append(bar(f, bar_w), style=style)
             text.append(f" {r:>8.3g}", style="bold" if is_chosen else "")
+            if a is not None:
+                text.append(f" @{a:<3.0f}", style="dim")
         text.append(" ◀\n" if is_chosen else "\n", style="bold")
     stages = [f"{STAGE_NAMES.get(k, k)} {v:.0f}" for k, v in plan.timing_ms.items()
               if k != "total" and finite(v)]
@@ -63,6 +73,22 @@ def planner_text(plan: Plan | None, method: str, width: int, next_plan_in_s: flo
     text.append("next re-plan in ", style="dim")
     text.append(f"{next_plan_in_s:.1f} s", style="bold")
     return text
+
+
+def _best_per_heading(plan: Plan) -> tuple[list[float], list[float], list[float] | None]:
+    """(headings, rewards, altitudes): one row per heading; with altitude actions the best
+    altitude's reward (NaN where every altitude is pruned) and that altitude."""
+    rewards = [math.nan if r is None else r for r in plan.rewards]  # None: pruned
+    if plan.alts_m is None:
+        return list(plan.headings_deg), rewards, None
+    best: dict[float, tuple[float, float]] = {}
+    for h, r, a in zip(plan.headings_deg, rewards, plan.alts_m, strict=False):
+        key = round(h % 360.0, 6)
+        if key not in best or (not math.isnan(r) and (math.isnan(best[key][0])
+                                                      or r > best[key][0])):
+            best[key] = (r, a)
+    heads = list(best)
+    return heads, [best[h][0] for h in heads], [best[h][1] for h in heads]
 
 
 class PlannerPanel(Widget):

@@ -135,6 +135,21 @@ def test_panel_texts(snapshot):
     assert cells[0] == "T3" and cells[6] == "0" and cells[7] == "--" and cells[8] == "no"
 
 
+def test_planner_panel_with_altitude_actions(snapshot):
+    """16 actions (8 headings at 50 m and 20 m): one row per heading with its best altitude,
+    and the altitude flown to beside the heading."""
+    plan = snapshot.plan.model_copy(update={
+        "headings_deg": [45.0 * i for i in range(8)] * 2,
+        "rewards": [1.0] * 8 + [2.0, 0.5, None, 1.5, 0.2, 0.1, 0.1, 0.1],
+        "alts_m": [50.0] * 8 + [20.0] * 8, "chosen_heading_deg": 0.0, "chosen_alt_m": 20.0})
+    lines = planner_text(plan, plan.method, 48, 1.0).plain.splitlines()
+    assert "000° N  alt 20 m" in lines[1]
+    rows = lines[2:10]
+    assert len(rows) == 8 and sum("◀" in r for r in rows) == 1 and "◀" in rows[0]
+    assert "@20" in rows[0] and "@50" in rows[1] and "@50" in rows[2] and "@20" in rows[3]
+    assert "pruned" not in rows[2]  # 90 deg pruned at 20 m, flyable at 50 m
+
+
 def test_tags_table_says_why_a_tag_was_reported(snapshot):
     from dataclasses import replace
 
