@@ -171,6 +171,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the mission's stall and budget rules: every tag reported in bounded "
                    "time (reached, stalled, budget), the run ends when all are "
                    "(docs/mission-finish.md)")
+    p.add_argument("--min-alt", type=_positive_float, default=None, metavar="M",
+                   help="altitude actions: every heading also scored at M m (the mission's "
+                   "flight.min_alt_m; the search flies at 50 m); default: hold 50 m")
     p.add_argument("--quick", action="store_true",
                    help="short horizons for a smoke run (minutes, not hours)")
     p.add_argument("--out", required=True, metavar="DIR")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TextIO
@@ -118,6 +118,8 @@ def _command(args: argparse.Namespace) -> str:
             parts += [f"--{flag}", value]
     if getattr(args, "finish", False):
         parts.append("--finish")
+    if getattr(args, "min_alt", None) is not None:
+        parts += ["--min-alt", f"{args.min_alt:g}"]
     if args.quick:
         parts.append("--quick")
     return shlex.join(parts)
@@ -133,6 +135,13 @@ def cmd_experiment(args: argparse.Namespace) -> int:
                   reality=getattr(args, "reality", "matched"),
                   estimator=getattr(args, "estimator", "classic"),
                   finish=bool(getattr(args, "finish", False)))
+    min_alt = getattr(args, "min_alt", None)
+    if min_alt is not None:
+        if min_alt >= sc.alt_m:
+            print(f"mexgen-gcs experiment: --min-alt must be below the search altitude "
+                  f"{sc.alt_m:g} m (got {min_alt:g})", file=sys.stderr)
+            return 2
+        sc = replace(sc, min_alt_m=float(min_alt))
     try:
         result = run_experiment(sc, methods, starts=args.starts, reps=args.reps,
                                 seed=args.seed, out_dir=args.out, workers=args.workers,

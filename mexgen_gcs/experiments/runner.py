@@ -118,8 +118,8 @@ class RunResult:
     spec: RunSpec
     row: dict[str, str]
     series: dict[str, NDArray[np.float32]]
-    """t_s (T,), vehicle_en_m (T, 2), error_m (T, n_tags), trace_m2 (T, n_tags), radius_m
-    (T, n_tags): every tag's 95 % radius at every pulse."""
+    """t_s (T,), vehicle_en_m (T, 2), vehicle_alt_m (T,) above home, error_m (T, n_tags),
+    trace_m2 (T, n_tags), radius_m (T, n_tags): every tag's 95 % radius at every pulse."""
     stages_s: dict[str, float] = field(default_factory=dict)
     """Process CPU seconds by stage: filter (detections and pulses), planner, world (the
     rest: truth, radio, vehicle, bookkeeping); for `bench experiment`, not in runs.csv."""
@@ -200,6 +200,7 @@ def run_one(spec: RunSpec) -> RunResult:
     steps = sc.steps
     t_s = np.zeros(steps)
     vehicle_en = np.zeros((steps, 2))
+    vehicle_alt = np.zeros(steps)
     error_m = np.full((steps, sc.n_tags), np.nan)
     trace_m2 = np.full((steps, sc.n_tags), np.nan)
     radius_m = np.full(sc.n_tags, np.nan)  # every tag's 95 % radius at the latest pulse
@@ -238,6 +239,7 @@ def run_one(spec: RunSpec) -> RunResult:
         i = k - 1
         t_s[i] = t
         vehicle_en[i] = rx_xyz[:2]
+        vehicle_alt[i] = rx_xyz[2]
         for j, tid in enumerate(tag_ids):
             est = report.estimates[tid]
             error_m[i, j] = math.dist(est.mean[:2], tag_xy[j])
@@ -287,7 +289,8 @@ def run_one(spec: RunSpec) -> RunResult:
                    all_reported_s=_num(all_reported_t),
                    **{f"all_under_{r}_s": _num(first_all_under(t_s[:n], radius_series[:n], r))
                       for r in UNDER_RADII_M})
-    series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "error_m": error_m[:n],
+    series = {"t_s": t_s[:n], "vehicle_en_m": vehicle_en[:n], "vehicle_alt_m": vehicle_alt[:n],
+              "error_m": error_m[:n],
               "trace_m2": trace_m2[:n], "radius_m": radius_series[:n]}
     return RunResult(spec, row, {name: v.astype(np.float32) for name, v in series.items()},
                      stages_s=dict(stage))

@@ -189,3 +189,33 @@ def test_cli_finish_and_an_oracle(tmp_path) -> None:
     summary = (tmp_path / "summary.md").read_text()
     assert "## Time to radius and reporting" in summary and "Oracle star 100 m" in summary
     assert "Reporting (`--finish`)" in summary
+
+
+def test_altitude_actions_fly_between_the_bounds_and_are_reproducible() -> None:
+    """``min_alt_m`` (``experiment --min-alt``): the point mass follows the planner's chosen
+    altitude, never below the bound nor above the search altitude; same seed, same run."""
+    sc = _short(False, min_alt_m=20.0)
+    a = run_one(RunSpec(sc, "mexgen", 3, 0, 0))
+    alt = a.series["vehicle_alt_m"]
+    assert alt.min() < 30.0, "never descended"
+    assert alt.min() >= 20.0 - 1e-3 and alt.max() <= sc.alt_m + 1e-3
+    b = run_one(RunSpec(sc, "mexgen", 3, 0, 0))
+    np.testing.assert_array_equal(alt, b.series["vehicle_alt_m"])
+    held = run_one(RunSpec(_short(False), "mexgen", 3, 0, 0)).series["vehicle_alt_m"]
+    assert np.all(held == np.float32(sc.alt_m))
+
+
+def test_cli_min_alt(tmp_path, capsys) -> None:
+    import json
+
+    from mexgen_gcs.cli import main
+
+    base = ["experiment", "localise", "--model", "static", "--quick", "--starts", "1", "--reps",
+            "1", "--workers", "1", "--methods", "mexgen"]
+    assert main([*base, "--min-alt", "60", "--out", str(tmp_path / "bad")]) == 2
+    assert "--min-alt must be below the search altitude 50 m" in capsys.readouterr().err
+    assert not (tmp_path / "bad" / "runs.csv").exists()
+    assert main([*base, "--min-alt", "20", "--out", str(tmp_path / "ok")]) == 0
+    ident = json.loads((tmp_path / "ok" / "experiment.json").read_text())
+    assert ident["settings"]["static"]["min_alt_m"] == 20.0
+    assert "--min-alt 20" in (tmp_path / "ok" / "commands.log").read_text()
