@@ -139,6 +139,8 @@ class Scenario:
     mismatch_accel_std_m_s2: float = 1.0
     """The mismatched (CV) filter's acceleration noise; see mismatch_accel_std_m_s2()."""
     filter_particles: int = 2000
+    filter_roughening_k: float = 0.2
+    """The filter's roughening constant (the mission's filter.roughening_k)."""
     planning_particles: int = 1000
     mexgen_samples: int = 512
     mc_rollouts: int = 8
@@ -384,6 +386,7 @@ def mission_yaml(sc: Scenario, method: str) -> str:
             "speed_min_m_s": speed_lo,
             "speed_max_m_s": speed_hi,
             "n_particles": sc.filter_particles,
+            "roughening_k": sc.filter_roughening_k,
         },
         "planner": {
             "method": planner_method,
