@@ -11,6 +11,8 @@ import pytest
 from tests.mission.fake_flight import fly
 
 
+@pytest.mark.long  # three in-process flights of 25 s (the planner kernel is tested fast in
+# tests/core/test_planner_alpha.py)
 @pytest.mark.parametrize("alpha", [0.5, 2.0, 5.0])
 async def test_the_mission_plans_and_flies_with_any_alpha(tmp_path, alpha):
     f = await fly(tmp_path / "log", overrides={"planner.alpha": alpha,

@@ -7,6 +7,8 @@ from __future__ import annotations
 import time
 from typing import Any
 
+import pytest
+
 from mexgen_gcs.mission.phases.common import SETPOINT_HZ
 from tests.mission.fake_flight import fly, make_mission
 from tests.mission.fake_vehicle import FakeVehicle
@@ -46,6 +48,7 @@ class _Timed(FakeVehicle):
         self.setpoint_walls.append(time.monotonic())
 
 
+@pytest.mark.long  # 12 s of a stalled disk in real time
 async def test_setpoints_keep_their_rate_while_the_log_disk_stalls(tmp_path):
     fake = _Timed(make_mission().local_frame())
     files: list[_StallingFile] = []
