@@ -412,6 +412,6 @@ def test_the_planner_flies_low_within_the_missions_bound(tmp_path):
     low = [r["t"] for r in plans if r["chosen_alt_m"] == 20.0]
     assert low, "no plan chose the lower altitude"
     searching = [r["rel_alt_m"] for r in records if r["type"] == "telemetry"
-                 and r["t"] > low[0] + 20.0 and r["mode"] == "OFFBOARD"]
+                 and r["t"] > low[0] + 20.0 and r["mode"] == "OFFBOARD" and r["in_air"]]
     assert searching and min(searching) < 30.0
     assert min(searching) > 20.0 - 3.0  # the P-controlled descent settles on the bound
