@@ -26,12 +26,14 @@ import shutil
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mexgen_gcs.mission.run import free_udp_port
 from tests.sim.sim_helpers import SimProcess, start_radios_only
 
 #: Where PX4's own instructions leave a SITL build (a clone in the home directory).
@@ -207,3 +209,21 @@ def radios_on(px4: Px4Sitl, mission: Path, *, radio_port: int, truth_dir: Path,
         yield rider
     finally:
         rider.stop()
+
+
+def fly_with_radios(px4: Px4Sitl, mission: Path, tmp_path: Path,
+                    timeout_s: float) -> subprocess.CompletedProcess[str]:
+    """``mexgen-gcs fly MISSION`` against this PX4 with the simulator's radios riding on its
+    GCS link, as a user flies it (headless, seed 1, logs under ``tmp_path/flights``, the
+    radios' truth under ``tmp_path/radios``). PX4 SIH leaves the data-link-loss action at the
+    firmware default, disabled, which the preflight check refuses; set before start-up it
+    would keep PX4 from "Ready for takeoff" without a GCS, so these flights accept it
+    knowingly (``--accept-unsafe-params NAV_DLL_ACT``)."""
+    radio_port = free_udp_port()
+    with radios_on(px4, mission, radio_port=radio_port, truth_dir=tmp_path / "radios"):
+        return subprocess.run(
+            [sys.executable, "-m", "mexgen_gcs", "fly", str(mission), "--headless",
+             "--connect", px4.mavsdk_url, "--radio", f"udp://127.0.0.1:{radio_port}",
+             "--log-dir", str(tmp_path / "flights"), "--seed", "1",
+             "--accept-unsafe-params", "NAV_DLL_ACT"],
+            capture_output=True, text=True, timeout=timeout_s)

@@ -8,9 +8,6 @@ from __future__ import annotations
 
 import asyncio
 import math
-import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +17,7 @@ from mexgen_gcs.core.geo import LocalFrame
 from mexgen_gcs.io.flightlog import read_flight_log
 from mexgen_gcs.io.truthfile import read_truth_file
 from tests.px4.conftest import Px4Factory
-from tests.px4.px4_sitl import radios_on
+from tests.px4.px4_sitl import fly_with_radios
 from tests.sim.sim_helpers import DEMO_MISSION
 
 pytestmark = pytest.mark.px4
@@ -30,26 +27,9 @@ HOME = (-34.9212, 138.6011, 0.0)  # the demo mission's home
 TIMEOUT_S = 900.0
 
 
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 async def test_demo_mission_against_px4(px4_factory: Px4Factory, tmp_path: Path) -> None:
     px4 = await asyncio.to_thread(px4_factory, speed_factor=K, home=HOME)
-    radio_port = free_udp_port()
-    with radios_on(px4, DEMO_MISSION, radio_port=radio_port, truth_dir=tmp_path / "radios"):
-        proc = await asyncio.to_thread(
-            subprocess.run,
-            [sys.executable, "-m", "mexgen_gcs", "fly", str(DEMO_MISSION), "--headless",
-             "--connect", px4.mavsdk_url, "--radio", f"udp://127.0.0.1:{radio_port}",
-             "--log-dir", str(tmp_path / "flights"), "--seed", "1",
-             # PX4 SIH leaves the data-link-loss action at the firmware default, disabled,
-             # which the preflight check refuses; set before start-up it would keep PX4 from
-             # "Ready for takeoff" without a GCS, so this test accepts it knowingly
-             "--accept-unsafe-params", "NAV_DLL_ACT"],
-            capture_output=True, text=True, timeout=TIMEOUT_S)
+    proc = await asyncio.to_thread(fly_with_radios, px4, DEMO_MISSION, tmp_path, TIMEOUT_S)
     print(proc.stdout[-3000:])
     assert proc.returncode == 0, proc.stderr[-3000:]
     log_dir = next((tmp_path / "flights").iterdir())

