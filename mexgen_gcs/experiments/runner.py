@@ -144,8 +144,7 @@ def run_one(spec: RunSpec) -> RunResult:
     star = StarPasses(orbit_m) if oracle_pattern(spec.method) == "star" and orbit_m else None
     config = replace(mission.planner_config(planner_method), reach=sc.planner_reach,
                      outcome=sc.planner_outcome,  # type: ignore[arg-type]
-                     toward_target=sc.planner_toward_target,
-                     altitudes_m=() if sc.min_alt_m is None else (sc.alt_m, sc.min_alt_m))
+                     toward_target=sc.planner_toward_target)
     planner = Planner(config, radio_model, area)
     plan_rng = gcs.spawn(1)[0]
     radio = RadioWorld(radio_model, sc.n_tags, np.random.default_rng(seeds.radio),

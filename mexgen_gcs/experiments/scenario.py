@@ -372,7 +372,7 @@ def mission_yaml(sc: Scenario, method: str) -> str:
         "home": {"lat_deg": -34.9212, "lon_deg": 138.6011, "alt_m": 0.0},
         "area": {"rectangle_m": {"west_m": -h, "east_m": h, "south_m": -h, "north_m": h}},
         "flight": {"alt_m": sc.alt_m, "speed_m_s": sc.speed_m_s,
-                   "max_accel_m_s2": sc.max_accel_m_s2},
+                   "max_accel_m_s2": sc.max_accel_m_s2, "min_alt_m": sc.min_alt_m},
         "tags": tags,
         "radio": {"front_back_db": sc.front_back_db, "sensitivity_db": sc.sensitivity_db,
                   "detection_spread_db": sc.detection_spread_db, "pd_max": sc.pd_max},
